@@ -1,0 +1,117 @@
+//! Rigid bodies: the state the simulation advances and the constants it needs.
+
+use glam::{DMat3, DQuat, DVec3};
+
+/// Index of a body in [`crate::World::bodies`].
+pub type BodyId = usize;
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct RigidBody {
+    /// Index of the body's shape in [`crate::World::shapes`].
+    pub shape: usize,
+    pub density: f64,
+    /// Fixed bodies have zero inverse mass and inverse inertia and never move.
+    pub fixed: bool,
+    /// Centre of mass in world space (the coursework's `COM`).
+    pub position: DVec3,
+    /// Unit quaternion from body to world space.
+    pub orientation: DQuat,
+    pub linear_velocity: DVec3,
+    /// World-space angular velocity.
+    pub angular_velocity: DVec3,
+    pub mass: f64,
+    pub inverse_mass: f64,
+    /// Inertia tensor about the centre of mass, body frame.
+    pub inertia: DMat3,
+    /// Inverse inertia tensor, body frame (the coursework's `invIT`).
+    pub inverse_inertia: DMat3,
+    /// Set when the body's state went non-finite or absurd: it is frozen at its last good state
+    /// and ignored by contacts and constraints.
+    pub quarantined: bool,
+}
+
+impl RigidBody {
+    /// A body of `density` on a shape of `volume` and unit-density inertia `unit_inertia`.
+    pub fn new(shape: usize, volume: f64, unit_inertia: DMat3, density: f64, fixed: bool, position: DVec3, orientation: DQuat) -> Self {
+        let (mass, inverse_mass, inertia, inverse_inertia) = if fixed {
+            (f64::INFINITY, 0.0, unit_inertia * density, DMat3::ZERO)
+        } else {
+            let inertia = unit_inertia * density;
+            (density * volume, 1.0 / (density * volume), inertia, inertia.inverse())
+        };
+        Self {
+            shape,
+            density,
+            fixed,
+            position,
+            orientation,
+            linear_velocity: DVec3::ZERO,
+            angular_velocity: DVec3::ZERO,
+            mass,
+            inverse_mass,
+            inertia,
+            inverse_inertia,
+            quarantined: false,
+        }
+    }
+
+    /// Whether contacts and constraints may move this body.
+    pub fn is_dynamic(&self) -> bool {
+        !self.fixed && !self.quarantined
+    }
+
+    pub fn rotation(&self) -> DMat3 {
+        DMat3::from_quat(self.orientation)
+    }
+
+    /// World inverse inertia `R Iinv R^T` (the coursework's `get_curr_inv_IT`).
+    pub fn world_inverse_inertia(&self) -> DMat3 {
+        let r = self.rotation();
+        r * self.inverse_inertia * r.transpose()
+    }
+
+    /// World inertia `R I R^T`.
+    pub fn world_inertia(&self) -> DMat3 {
+        let r = self.rotation();
+        r * self.inertia * r.transpose()
+    }
+
+    /// A body-space point in world space: `R(q) p + COM` (the coursework's `currV`).
+    /// Every stage that needs a current vertex calls this one function, so all agree to the bit.
+    #[inline]
+    pub fn world_point(&self, local: DVec3) -> DVec3 {
+        self.orientation * local + self.position
+    }
+
+    /// Velocity of the material point at world-space arm `r` from the centre of mass.
+    #[inline]
+    pub fn point_velocity(&self, arm: DVec3) -> DVec3 {
+        self.linear_velocity + self.angular_velocity.cross(arm)
+    }
+
+    /// Inverse mass as seen by contacts and constraints (zero for frozen bodies too).
+    pub fn effective_inverse_mass(&self) -> f64 {
+        if self.quarantined { 0.0 } else { self.inverse_mass }
+    }
+
+    pub fn effective_world_inverse_inertia(&self) -> DMat3 {
+        if self.quarantined { DMat3::ZERO } else { self.world_inverse_inertia() }
+    }
+
+    pub fn is_finite(&self) -> bool {
+        self.position.is_finite()
+            && self.orientation.is_finite()
+            && self.linear_velocity.is_finite()
+            && self.angular_velocity.is_finite()
+    }
+
+    /// Kinetic (linear and angular) plus gravitational potential energy; zero for fixed bodies.
+    pub fn energy(&self, gravity: DVec3) -> f64 {
+        if self.fixed {
+            return 0.0;
+        }
+        let w = self.angular_velocity;
+        0.5 * self.mass * self.linear_velocity.length_squared() + 0.5 * w.dot(self.world_inertia() * w)
+            - self.mass * gravity.dot(self.position)
+    }
+}

@@ -1,0 +1,246 @@
+//! Broad phase: world bounding boxes bounded from each body's pose and its body-space box (never
+//! by transforming vertices), and a uniform hash grid that finds the pairs whose boxes overlap
+//! and keeps up with bodies moved while contacts are being resolved.
+
+use crate::body::RigidBody;
+use crate::shape::Shape;
+use glam::{DMat3, DVec3};
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Aabb {
+    pub min: DVec3,
+    pub max: DVec3,
+}
+
+impl Aabb {
+    pub fn overlaps(&self, other: &Aabb) -> bool {
+        self.min.cmple(other.max).all() && other.min.cmple(self.max).all()
+    }
+}
+
+/// A box containing the body's hull at its current pose: the body-space box rotated, then boxed
+/// (`|R| h`), padded by a relative 1e-9 so rounding can never make it smaller than the vertices'.
+pub fn body_aabb(body: &RigidBody, shape: &Shape) -> Aabb {
+    let r = body.rotation();
+    let abs = DMat3::from_cols(r.x_axis.abs(), r.y_axis.abs(), r.z_axis.abs());
+    let center = body.world_point(shape.local_box_center);
+    let pad = 1e-9 * (shape.local_box_half_extents.max_element() + center.abs().max_element()) + 1e-12;
+    let half = abs * shape.local_box_half_extents + DVec3::splat(pad);
+    Aabb { min: center - half, max: center + half }
+}
+
+/// FxHash-style multiplicative hasher for cell keys: fast, and deterministic across runs.
+#[derive(Default)]
+pub struct CellHasher(u64);
+
+impl Hasher for CellHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(b as u64);
+        }
+    }
+    fn write_u64(&mut self, value: u64) {
+        self.0 = (self.0.rotate_left(5) ^ value).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+}
+
+type CellMap = HashMap<u64, Vec<u32>, BuildHasherDefault<CellHasher>>;
+
+/// Cells spanned by a box more than this many per axis make a body "oversized": it is tested
+/// against every other body instead of filling thousands of cells (floors, walls).
+const MAX_CELLS_PER_AXIS: i64 = 8;
+
+/// Uniform hash grid of body boxes.
+#[derive(Debug, Default, Clone)]
+pub struct Grid {
+    cell_size: f64,
+    cells: CellMap,
+    /// Cell range (min, max corner) each body was inserted with; None for oversized bodies.
+    ranges: Vec<Option<([i64; 3], [i64; 3])>>,
+    oversized: Vec<u32>,
+    stamp: Vec<u32>,
+    epoch: u32,
+}
+
+impl Grid {
+    /// A grid whose cells are about the size of a typical body.
+    pub fn new(cell_size: f64) -> Self {
+        Self { cell_size: if cell_size.is_finite() && cell_size > 0.0 { cell_size } else { 1.0 }, ..Default::default() }
+    }
+
+    pub fn cell_size(&self) -> f64 {
+        self.cell_size
+    }
+
+    fn range(&self, aabb: &Aabb) -> Option<([i64; 3], [i64; 3])> {
+        let inv = 1.0 / self.cell_size;
+        let lo = (aabb.min * inv).floor();
+        let hi = (aabb.max * inv).floor();
+        if !lo.is_finite() || !hi.is_finite() {
+            return None;
+        }
+        let lo = [lo.x as i64, lo.y as i64, lo.z as i64];
+        let hi = [hi.x as i64, hi.y as i64, hi.z as i64];
+        (0..3).all(|k| hi[k] - lo[k] < MAX_CELLS_PER_AXIS).then_some((lo, hi))
+    }
+
+    fn key(x: i64, y: i64, z: i64) -> u64 {
+        // 21 bits per axis: wraps for huge coordinates, which only costs extra box tests.
+        ((x as u64 & 0x1F_FFFF) << 42) | ((y as u64 & 0x1F_FFFF) << 21) | (z as u64 & 0x1F_FFFF)
+    }
+
+    fn for_cells(range: ([i64; 3], [i64; 3]), mut f: impl FnMut(u64)) {
+        let (lo, hi) = range;
+        for x in lo[0]..=hi[0] {
+            for y in lo[1]..=hi[1] {
+                for z in lo[2]..=hi[2] {
+                    f(Self::key(x, y, z));
+                }
+            }
+        }
+    }
+
+    /// Rebuilds the grid from scratch over `aabbs`; bodies with `active[i] == false` are left out.
+    pub fn rebuild(&mut self, aabbs: &[Aabb], active: &[bool]) {
+        for list in self.cells.values_mut() {
+            list.clear();
+        }
+        self.oversized.clear();
+        self.ranges.clear();
+        self.ranges.resize(aabbs.len(), None);
+        self.stamp.resize(aabbs.len(), 0);
+        for (index, aabb) in aabbs.iter().enumerate() {
+            if active[index] {
+                self.insert(index, aabb);
+            }
+        }
+    }
+
+    fn insert(&mut self, index: usize, aabb: &Aabb) {
+        match self.range(aabb) {
+            Some(range) => {
+                self.ranges[index] = Some(range);
+                let cells = &mut self.cells;
+                Self::for_cells(range, |key| cells.entry(key).or_default().push(index as u32));
+            }
+            None => self.oversized.push(index as u32),
+        }
+    }
+
+    /// Moves body `index` to its new box.
+    pub fn update(&mut self, index: usize, aabb: &Aabb) {
+        let new_range = self.range(aabb);
+        let old_range = self.ranges[index];
+        if new_range.is_some() && new_range == old_range {
+            return;
+        }
+        match old_range {
+            Some(range) => {
+                let cells = &mut self.cells;
+                Self::for_cells(range, |key| {
+                    if let Some(list) = cells.get_mut(&key) {
+                        list.retain(|&b| b as usize != index);
+                    }
+                });
+            }
+            None => self.oversized.retain(|&b| b as usize != index),
+        }
+        self.ranges[index] = None;
+        self.insert(index, aabb);
+    }
+
+    /// Every pair (i < j) of inserted bodies whose boxes overlap and for which `keep(i, j)`,
+    /// sorted, each once. `tested` counts the box comparisons made.
+    pub fn overlapping_pairs(&self, aabbs: &[Aabb], keep: impl Fn(usize, usize) -> bool, tested: &mut usize) -> Vec<(u32, u32)> {
+        let mut pairs = Vec::new();
+        let mut consider = |a: u32, b: u32, pairs: &mut Vec<(u32, u32)>| {
+            let (i, j) = if a < b { (a, b) } else { (b, a) };
+            *tested += 1;
+            if aabbs[i as usize].overlaps(&aabbs[j as usize]) && keep(i as usize, j as usize) {
+                pairs.push((i, j));
+            }
+        };
+        for list in self.cells.values() {
+            for (k, &a) in list.iter().enumerate() {
+                for &b in &list[k + 1..] {
+                    consider(a, b, &mut pairs);
+                }
+            }
+        }
+        for (k, &a) in self.oversized.iter().enumerate() {
+            for (b, range) in self.ranges.iter().enumerate() {
+                if range.is_some() {
+                    consider(a, b as u32, &mut pairs);
+                }
+            }
+            for &b in &self.oversized[k + 1..] {
+                consider(a, b, &mut pairs);
+            }
+        }
+        pairs.sort_unstable();
+        pairs.dedup();
+        pairs
+    }
+
+    /// Bodies (other than `index`) whose boxes overlap `aabbs[index]`, in ascending order.
+    pub fn query(&mut self, index: usize, aabbs: &[Aabb], out: &mut Vec<u32>) {
+        out.clear();
+        self.epoch = self.epoch.wrapping_add(1);
+        if self.epoch == 0 {
+            self.stamp.iter_mut().for_each(|s| *s = 0);
+            self.epoch = 1;
+        }
+        let aabb = aabbs[index];
+        let range = self.ranges[index].or_else(|| self.range(&aabb));
+        let (stamp, epoch) = (&mut self.stamp, self.epoch);
+        let mut visit = |b: u32, out: &mut Vec<u32>| {
+            let bi = b as usize;
+            if bi != index && stamp[bi] != epoch {
+                stamp[bi] = epoch;
+                if aabbs[bi].overlaps(&aabb) {
+                    out.push(b);
+                }
+            }
+        };
+        match range {
+            Some(range) => {
+                let cells = &self.cells;
+                Self::for_cells(range, |key| {
+                    if let Some(list) = cells.get(&key) {
+                        for &b in list {
+                            visit(b, out);
+                        }
+                    }
+                });
+            }
+            None => {
+                // An oversized body may touch anything.
+                for (b, range) in self.ranges.iter().enumerate() {
+                    if range.is_some() {
+                        visit(b as u32, out);
+                    }
+                }
+            }
+        }
+        for &b in &self.oversized {
+            visit(b, out);
+        }
+        out.sort_unstable();
+    }
+}
+
+/// Cell size for a set of bodies: the median diagonal of their boxes, so a typical body spans
+/// one or two cells per axis.
+pub fn typical_cell_size(half_extents: impl Iterator<Item = DVec3>) -> f64 {
+    let mut sizes: Vec<f64> = half_extents.map(|h| 2.0 * h.length()).filter(|s| s.is_finite() && *s > 0.0).collect();
+    if sizes.is_empty() {
+        return 1.0;
+    }
+    sizes.sort_by(f64::total_cmp);
+    sizes[sizes.len() / 2]
+}

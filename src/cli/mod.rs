@@ -1,0 +1,140 @@
+//! The `tumble` command line: argument types shared by the subcommands, and the subcommands.
+
+pub mod run;
+
+use clap::Args;
+use tumble::settings::{BroadPhase, ConstraintSchedule, RotationIntegrator};
+use tumble::{ConstraintsChoice, Settings};
+
+/// Simulation settings common to `run`, `view`, `record` and the benchmarks. Defaults reproduce
+/// the coursework exactly; every improvement is opt-in.
+#[derive(Debug, Clone, Args)]
+pub struct SettingsArgs {
+    /// Time step in seconds.
+    #[arg(long, value_name = "S")]
+    pub dt: Option<f64>,
+    /// Coefficient of restitution (0 = plastic, 1 = elastic).
+    #[arg(long, value_name = "E")]
+    pub restitution: Option<f64>,
+    /// Budget of constraint visits per step.
+    #[arg(long, value_name = "K")]
+    pub max_iterations: Option<usize>,
+    /// Constraint tolerance.
+    #[arg(long, value_name = "T")]
+    pub tolerance: Option<f64>,
+    /// Start from the best setting combination found by `tumble bench accuracy`.
+    #[arg(long)]
+    pub accurate: bool,
+    /// No impulse for contacts whose bodies already separate.
+    #[arg(long)]
+    pub skip_separating_contacts: bool,
+    /// Contacts closing slower than this (units/s) bounce with e = 0.
+    #[arg(long, value_name = "SPEED")]
+    pub restitution_threshold: Option<f64>,
+    /// Substeps per step.
+    #[arg(long, value_name = "N")]
+    pub substeps: Option<u32>,
+    /// Rotation integrator.
+    #[arg(long, value_enum)]
+    pub rotation_integrator: Option<RotationIntegrator>,
+    /// Broad phase (both give identical results).
+    #[arg(long, value_enum)]
+    pub broad_phase: Option<BroadPhase>,
+    /// Constraint schedule.
+    #[arg(long, value_enum)]
+    pub constraint_schedule: Option<ConstraintSchedule>,
+}
+
+impl SettingsArgs {
+    pub fn settings(&self) -> anyhow::Result<Settings> {
+        let mut s = if self.accurate { Settings::accurate() } else { Settings::default() };
+        if let Some(v) = self.dt {
+            anyhow::ensure!(v.is_finite() && v >= 0.0, "--dt must be a non-negative number of seconds, got {v}");
+            s.time_step = v;
+        }
+        if let Some(v) = self.restitution {
+            anyhow::ensure!((0.0..=1.0).contains(&v), "--restitution must lie in [0, 1], got {v}");
+            s.restitution = v;
+        }
+        if let Some(v) = self.max_iterations {
+            s.max_iterations = v;
+        }
+        if let Some(v) = self.tolerance {
+            anyhow::ensure!(v.is_finite() && v >= 0.0, "--tolerance must be non-negative, got {v}");
+            s.tolerance = v;
+        }
+        s.skip_separating_contacts |= self.skip_separating_contacts;
+        if let Some(v) = self.restitution_threshold {
+            anyhow::ensure!(v.is_finite() && v >= 0.0, "--restitution-threshold must be non-negative, got {v}");
+            s.restitution_threshold = v;
+        }
+        if let Some(v) = self.substeps {
+            anyhow::ensure!((1..=1000).contains(&v), "--substeps must lie in 1..=1000, got {v}");
+            s.substeps = v;
+        }
+        if let Some(v) = self.rotation_integrator {
+            s.rotation_integrator = v;
+        }
+        if let Some(v) = self.broad_phase {
+            s.broad_phase = v;
+        }
+        if let Some(v) = self.constraint_schedule {
+            s.constraint_schedule = v;
+        }
+        Ok(s)
+    }
+}
+
+/// A scene and its constraints.
+#[derive(Debug, Clone, Args)]
+pub struct SceneArgs {
+    /// Scene file, or a built-in scene: mixed, tower, two-chain, cube, stress, two-cylinders.
+    #[arg(default_value = tumble::DEFAULT_SCENE)]
+    pub scene: String,
+    /// Constraint file, or `none`. Default: X-constraints.txt beside X-scene.txt, if present.
+    #[arg(long, value_name = "FILE|none")]
+    pub constraints: Option<String>,
+}
+
+impl SceneArgs {
+    pub fn load(&self, settings: Settings) -> anyhow::Result<tumble::World> {
+        let choice = ConstraintsChoice::from_arg(self.constraints.as_deref());
+        let world = tumble::scene::load(&self.scene, &choice, settings)?;
+        for w in &world.warnings {
+            eprintln!("warning: {w}");
+        }
+        Ok(world)
+    }
+}
+
+/// Progress bar on stderr, hidden when stderr is not a terminal.
+pub fn progress_bar(len: u64, what: &str) -> indicatif::ProgressBar {
+    use std::io::IsTerminal;
+    if !std::io::stderr().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(len);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} ({eta} left)")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    bar.set_message(what.to_string());
+    bar
+}
+
+/// Writes a file through a temporary sibling and renames it into place, so an interrupted run
+/// never leaves a half-written file under the final name.
+pub fn write_atomically(path: &std::path::Path, write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>) -> anyhow::Result<()> {
+    use anyhow::Context;
+    use std::io::Write;
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
+    let tmp = path.with_file_name(format!(".{name}.partial"));
+    let file = std::fs::File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
+    let mut writer = std::io::BufWriter::new(file);
+    write(&mut writer).with_context(|| format!("cannot write {}", tmp.display()))?;
+    writer.flush().with_context(|| format!("cannot write {}", tmp.display()))?;
+    drop(writer);
+    std::fs::rename(&tmp, path).with_context(|| format!("cannot move {} to {}", tmp.display(), path.display()))?;
+    Ok(())
+}

@@ -1,0 +1,41 @@
+//! Constraint files: a count M, then M records `m1 v1 m2 v2 lower upper` (0-based body and
+//! vertex indices, bounds as fractions of the initial distance).
+
+use super::LoadError;
+use super::limits::MAX_CONSTRAINTS;
+use super::tokens::Tokens;
+use std::path::Path;
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct ConstraintRecord {
+    pub body1: usize,
+    pub vertex1: usize,
+    pub body2: usize,
+    pub vertex2: usize,
+    pub lower: f64,
+    pub upper: f64,
+    pub line: usize,
+}
+
+pub fn parse_constraints(file: &Path, text: &str) -> Result<Vec<ConstraintRecord>, LoadError> {
+    let mut tokens = Tokens::new(file, text);
+    let count = tokens.count("the number of constraints", 6, MAX_CONSTRAINTS)?;
+    let mut records = Vec::with_capacity(count);
+    for _ in 0..count {
+        let (body1, line) = tokens.index("the first body index")?;
+        let (vertex1, _) = tokens.index("the first vertex index")?;
+        let (body2, _) = tokens.index("the second body index")?;
+        let (vertex2, _) = tokens.index("the second vertex index")?;
+        let (lower, lower_line) = tokens.real("the lower bound")?;
+        let (upper, _) = tokens.real("the upper bound")?;
+        if lower < 0.0 || upper < lower {
+            return Err(tokens.error(lower_line, format!("bounds must satisfy 0 <= lower <= upper, found {lower} and {upper}")));
+        }
+        records.push(ConstraintRecord { body1, vertex1, body2, vertex2, lower, upper, line });
+    }
+    if let Some(extra) = tokens.peek() {
+        let line = extra.line;
+        return Err(tokens.error(line, format!("the file declares {count} constraints but has more records after them")));
+    }
+    Ok(records)
+}

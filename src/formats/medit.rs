@@ -1,0 +1,144 @@
+//! Medit `.mesh` tetrahedral meshes (the coursework's format): sections `Vertices`, `Triangles`,
+//! `Tetrahedra`, 1-based indices, each row ending in a reference number that is ignored.
+
+use super::limits::MAX_MESH_ELEMENTS;
+use super::tokens::Tokens;
+use super::{LoadError, TetMesh};
+use glam::DVec3;
+use std::fmt::Write;
+use std::path::Path;
+
+/// Parses a Medit mesh. The coursework stores boundary triangles wound inward and flips them on
+/// load; so does this reader (the geometry stage then checks the orientation and repairs it).
+pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
+    let mut tokens = Tokens::new(file, text);
+    let mut mesh = TetMesh::default();
+    let mut seen_vertices = false;
+    // Index checks wait until all sections are read: a file may list elements before vertices.
+    let mut tet_lines = Vec::new();
+    let mut tri_lines = Vec::new();
+
+    while let Some(token) = tokens.peek() {
+        let keyword = token.text.to_ascii_lowercase();
+        let line = token.line;
+        tokens.next("a section keyword")?;
+        match keyword.as_str() {
+            "meshversionformatted" | "dimension" => {
+                let (value, line) = tokens.index("a number after the keyword")?;
+                if keyword == "dimension" && value != 3 {
+                    return Err(tokens.error(line, format!("only 3-dimensional meshes are supported, found Dimension {value}")));
+                }
+            }
+            "vertices" => {
+                let count = tokens.count("the vertex count", 4, MAX_MESH_ELEMENTS)?;
+                mesh.vertices.reserve(count);
+                for _ in 0..count {
+                    let (x, _) = tokens.real("a vertex x coordinate")?;
+                    let (y, _) = tokens.real("a vertex y coordinate")?;
+                    let (z, _) = tokens.real("a vertex z coordinate")?;
+                    tokens.real("the vertex reference number")?;
+                    mesh.vertices.push(DVec3::new(x, y, z));
+                }
+                seen_vertices = true;
+            }
+            "triangles" => {
+                let count = tokens.count("the triangle count", 4, MAX_MESH_ELEMENTS)?;
+                mesh.triangles.reserve(count);
+                for _ in 0..count {
+                    let line = tokens.line();
+                    let a = one_based(&mut tokens, "a triangle vertex index")?;
+                    let b = one_based(&mut tokens, "a triangle vertex index")?;
+                    let c = one_based(&mut tokens, "a triangle vertex index")?;
+                    tokens.real("the triangle reference number")?;
+                    // Flipped: stored inward, wanted outward.
+                    mesh.triangles.push([a, c, b]);
+                    tri_lines.push(line);
+                }
+            }
+            "tetrahedra" => {
+                let count = tokens.count("the tetrahedron count", 5, MAX_MESH_ELEMENTS)?;
+                mesh.tetrahedra.reserve(count);
+                for _ in 0..count {
+                    let line = tokens.line();
+                    let mut tet = [0u32; 4];
+                    for slot in &mut tet {
+                        *slot = one_based(&mut tokens, "a tetrahedron vertex index")?;
+                    }
+                    tokens.real("the tetrahedron reference number")?;
+                    mesh.tetrahedra.push(tet);
+                    tet_lines.push(line);
+                }
+            }
+            "edges" => skip_records(&mut tokens, "the edge count", 3)?,
+            "corners" | "ridges" | "requiredvertices" | "requirededges" | "requiredtriangles" => {
+                skip_records(&mut tokens, "the record count", 1)?
+            }
+            "end" => break,
+            other => {
+                return Err(tokens.error(line, format!("unknown section '{other}' (expected Vertices, Triangles, Tetrahedra, Edges or End)")));
+            }
+        }
+    }
+
+    if !seen_vertices || mesh.vertices.is_empty() {
+        return Err(LoadError::new(file, None, "the mesh has no vertices (missing 'Vertices' section)"));
+    }
+    if mesh.tetrahedra.is_empty() {
+        return Err(LoadError::new(file, None, "the mesh has no tetrahedra (missing 'Tetrahedra' section)"));
+    }
+    let n = mesh.vertices.len();
+    for (tet, &line) in mesh.tetrahedra.iter().zip(&tet_lines) {
+        check_indices(&tokens, tet, n, line, "tetrahedron")?;
+    }
+    for (tri, &line) in mesh.triangles.iter().zip(&tri_lines) {
+        check_indices(&tokens, tri, n, line, "triangle")?;
+    }
+    Ok(mesh)
+}
+
+fn one_based(tokens: &mut Tokens, what: &str) -> Result<u32, LoadError> {
+    let (value, line) = tokens.index(what)?;
+    if value == 0 {
+        return Err(tokens.error(line, format!("{what} is 0, but Medit indices start at 1")));
+    }
+    u32::try_from(value - 1).map_err(|_| tokens.error(line, format!("{what} {value} is too large")))
+}
+
+fn check_indices(tokens: &Tokens, element: &[u32], vertex_count: usize, line: usize, what: &str) -> Result<(), LoadError> {
+    for &index in element {
+        if index as usize >= vertex_count {
+            return Err(tokens.error(
+                line,
+                format!("{what} refers to vertex {} but the mesh has only {vertex_count} vertices", index + 1),
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn skip_records(tokens: &mut Tokens, what: &str, per_record: usize) -> Result<(), LoadError> {
+    let count = tokens.count(what, per_record, MAX_MESH_ELEMENTS)?;
+    for _ in 0..count * per_record {
+        tokens.real("a record field")?;
+    }
+    Ok(())
+}
+
+/// Writes a mesh in the coursework's convention (triangles stored inward, as `parse_medit` expects).
+pub fn write_medit(mesh: &TetMesh) -> String {
+    let mut out = String::from("MeshVersionFormatted 1\nDimension 3\n");
+    let _ = writeln!(out, "Vertices\n{}", mesh.vertices.len());
+    for v in &mesh.vertices {
+        let _ = writeln!(out, "{} {} {} 0", v.x, v.y, v.z);
+    }
+    let _ = writeln!(out, "Triangles\n{}", mesh.triangles.len());
+    for t in &mesh.triangles {
+        let _ = writeln!(out, "{} {} {} 0", t[0] + 1, t[2] + 1, t[1] + 1);
+    }
+    let _ = writeln!(out, "Tetrahedra\n{}", mesh.tetrahedra.len());
+    for t in &mesh.tetrahedra {
+        let _ = writeln!(out, "{} {} {} {} 0", t[0] + 1, t[1] + 1, t[2] + 1, t[3] + 1);
+    }
+    out.push_str("End\n");
+    out
+}

@@ -1,0 +1,70 @@
+//! Readers for the coursework's file formats. Physics never parses text: these functions turn
+//! bytes into plain data (`TetMesh`, `SceneRecord`, `ConstraintRecord`) or a [`LoadError`] that
+//! names the file, the line and the problem.
+
+mod constraint_file;
+mod medit;
+mod off;
+mod scene_file;
+mod tokens;
+
+pub use constraint_file::{ConstraintRecord, parse_constraints};
+pub use medit::{parse_medit, write_medit};
+pub use off::parse_off;
+pub use scene_file::{SceneRecord, parse_scene};
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// Hard limits on what a file may ask for, checked before anything is allocated, so a count of
+/// four billion vertices is an error rather than an out-of-memory abort.
+pub mod limits {
+    /// Largest file any reader accepts.
+    pub const MAX_FILE_BYTES: u64 = 256 * 1024 * 1024;
+    /// Most vertices (and tetrahedra, and triangles) in one mesh.
+    pub const MAX_MESH_ELEMENTS: usize = 5_000_000;
+    /// Most bodies in one scene.
+    pub const MAX_BODIES: usize = 1_000_000;
+    /// Most constraint records in one file.
+    pub const MAX_CONSTRAINTS: usize = 1_000_000;
+}
+
+/// A problem with an input file: which file, which line (1-based) when one is to blame, and what.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoadError {
+    pub file: PathBuf,
+    pub line: Option<usize>,
+    pub message: String,
+}
+
+impl LoadError {
+    pub fn new(file: impl Into<PathBuf>, line: Option<usize>, message: impl Into<String>) -> Self {
+        Self { file: file.into(), line, message: message.into() }
+    }
+
+    /// The same error attributed to another file (a reader works on text, the caller knows the path).
+    pub fn in_file(mut self, file: &Path) -> Self {
+        self.file = file.to_path_buf();
+        self
+    }
+}
+
+impl fmt::Display for LoadError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.line {
+            Some(line) => write!(f, "{}:{}: {}", self.file.display(), line, self.message),
+            None => write!(f, "{}: {}", self.file.display(), self.message),
+        }
+    }
+}
+
+impl std::error::Error for LoadError {}
+
+/// A tetrahedral mesh as stored on disk: vertices, tetrahedra and (optionally) boundary triangles,
+/// all 0-based. Triangles are oriented outward by the readers.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TetMesh {
+    pub vertices: Vec<glam::DVec3>,
+    pub tetrahedra: Vec<[u32; 4]>,
+    pub triangles: Vec<[u32; 3]>,
+}

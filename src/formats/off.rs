@@ -1,0 +1,85 @@
+//! Object File Format surface meshes (`.off`). tumble simulates volumes, so the surface is
+//! tetrahedralised as a fan from its volume centroid to every triangle, which is exact for convex
+//! and star-shaped meshes.
+
+use super::limits::MAX_MESH_ELEMENTS;
+use super::tokens::Tokens;
+use super::{LoadError, TetMesh};
+use glam::DVec3;
+use std::path::Path;
+
+pub fn parse_off(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
+    let mut tokens = Tokens::new(file, text);
+    let header = tokens.next("the 'OFF' header")?;
+    if !header.text.eq_ignore_ascii_case("OFF") {
+        let line = header.line;
+        let found = header.text.to_string();
+        return Err(tokens.error(line, format!("expected the 'OFF' header, found '{found}'")));
+    }
+    let vertex_count = tokens.count("the vertex count", 3, MAX_MESH_ELEMENTS)?;
+    let (face_count, face_line) = tokens.index("the face count")?;
+    tokens.index("the edge count")?;
+    if face_count > MAX_MESH_ELEMENTS || face_count > tokens.remaining() / 4 {
+        return Err(tokens.error(face_line, format!("the face count {face_count} is more than the file can hold")));
+    }
+    let mut vertices = Vec::with_capacity(vertex_count);
+    for _ in 0..vertex_count {
+        let (x, _) = tokens.real("a vertex x coordinate")?;
+        let (y, _) = tokens.real("a vertex y coordinate")?;
+        let (z, _) = tokens.real("a vertex z coordinate")?;
+        vertices.push(DVec3::new(x, y, z));
+    }
+    let mut triangles = Vec::with_capacity(face_count);
+    for _ in 0..face_count {
+        let (corners, line) = tokens.index("the number of corners of a face")?;
+        if !(3..=1024).contains(&corners) {
+            return Err(tokens.error(line, format!("a face needs 3 to 1024 corners, found {corners}")));
+        }
+        let mut polygon = Vec::with_capacity(corners);
+        for _ in 0..corners {
+            let (index, line) = tokens.index("a face vertex index")?;
+            if index >= vertex_count {
+                return Err(tokens.error(line, format!("face refers to vertex {index} but the mesh has only {vertex_count} vertices (0-based)")));
+            }
+            polygon.push(index as u32);
+        }
+        // Skip an optional colour on the same line.
+        while tokens.peek().is_some_and(|t| t.line == line) {
+            tokens.next("a colour component")?;
+        }
+        for k in 1..corners - 1 {
+            triangles.push([polygon[0], polygon[k], polygon[k + 1]]);
+        }
+    }
+    if triangles.is_empty() {
+        return Err(LoadError::new(file, None, "the surface has no faces"));
+    }
+    fan_tetrahedralise(file, vertices, triangles)
+}
+
+/// Builds tetrahedra (centroid, a, b, c) over a closed surface, orienting the triangles outward.
+fn fan_tetrahedralise(file: &Path, mut vertices: Vec<DVec3>, mut triangles: Vec<[u32; 3]>) -> Result<TetMesh, LoadError> {
+    // Signed volume and first moment by the divergence theorem, about the vertex mean for accuracy.
+    let origin = vertices.iter().copied().sum::<DVec3>() / vertices.len() as f64;
+    let mut volume = 0.0;
+    let mut moment = DVec3::ZERO;
+    for t in &triangles {
+        let [a, b, c] = t.map(|i| vertices[i as usize] - origin);
+        let v = a.dot(b.cross(c)) / 6.0;
+        volume += v;
+        moment += v * (a + b + c) / 4.0;
+    }
+    if !(volume.abs() > 0.0) || !volume.is_finite() {
+        return Err(LoadError::new(file, None, "the surface encloses no volume (degenerate or open mesh)"));
+    }
+    if volume < 0.0 {
+        for t in &mut triangles {
+            t.swap(1, 2);
+        }
+    }
+    let centroid = origin + moment / volume;
+    let apex = vertices.len() as u32;
+    vertices.push(centroid);
+    let tetrahedra = triangles.iter().map(|t| [apex, t[0], t[1], t[2]]).collect();
+    Ok(TetMesh { vertices, tetrahedra, triangles })
+}

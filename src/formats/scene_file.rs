@@ -1,0 +1,64 @@
+//! Scene files: a count N, then N records `mesh_path density is_fixed x y z qw qx qy qz`
+//! separated by any white space. Mesh paths are relative to the scene file's folder.
+
+use super::LoadError;
+use super::limits::MAX_BODIES;
+use super::tokens::Tokens;
+use glam::{DQuat, DVec3};
+use std::path::Path;
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct SceneRecord {
+    pub mesh_path: String,
+    pub density: f64,
+    pub fixed: bool,
+    pub position: DVec3,
+    /// Normalised on load.
+    pub orientation: DQuat,
+    /// Line of the record in the scene file, for errors found later (mesh loading, mass).
+    pub line: usize,
+}
+
+pub fn parse_scene(file: &Path, text: &str) -> Result<Vec<SceneRecord>, LoadError> {
+    let mut tokens = Tokens::new(file, text);
+    let count = tokens.count("the number of bodies", 10, MAX_BODIES)?;
+    let mut records = Vec::with_capacity(count);
+    for _ in 0..count {
+        let name = tokens.next("a mesh file name")?;
+        let (mesh_path, line) = (name.text.to_string(), name.line);
+        let (density, density_line) = tokens.real("the density")?;
+        let (fixed, fixed_line) = tokens.index("the is_fixed flag (0 or 1)")?;
+        if fixed > 1 {
+            return Err(tokens.error(fixed_line, format!("the is_fixed flag must be 0 or 1, found {fixed}")));
+        }
+        let fixed = fixed == 1;
+        if !fixed && density <= 0.0 {
+            return Err(tokens.error(density_line, format!("a movable body needs a positive density, found {density}")));
+        }
+        let (x, _) = tokens.real("the x position")?;
+        let (y, _) = tokens.real("the y position")?;
+        let (z, _) = tokens.real("the z position")?;
+        let (qw, q_line) = tokens.real("the quaternion w")?;
+        let (qx, _) = tokens.real("the quaternion x")?;
+        let (qy, _) = tokens.real("the quaternion y")?;
+        let (qz, _) = tokens.real("the quaternion z")?;
+        let q = DQuat::from_xyzw(qx, qy, qz, qw);
+        let norm = q.length();
+        if !(norm > 1e-12) || !norm.is_finite() {
+            return Err(tokens.error(q_line, "the orientation quaternion is zero and cannot be normalised"));
+        }
+        records.push(SceneRecord {
+            mesh_path,
+            density,
+            fixed,
+            position: DVec3::new(x, y, z),
+            orientation: q / norm,
+            line,
+        });
+    }
+    if let Some(extra) = tokens.peek() {
+        let line = extra.line;
+        return Err(tokens.error(line, format!("the file declares {count} bodies but has more records after them")));
+    }
+    Ok(records)
+}

@@ -1,0 +1,58 @@
+//! `tumble`: simulate, view, record and benchmark rigid-body scenes.
+
+mod cli;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(name = "tumble", version, about = "Rigid-body simulation of convex tet meshes with distance constraints", long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Simulate headless and print a summary (or JSON).
+    Run(cli::run::RunArgs),
+    /// List the built-in scenes.
+    Scenes,
+    /// Regenerate tumble's meshes in assets/ and its generated scenes in scenes/.
+    GenAssets {
+        /// Repository root to write into.
+        #[arg(long, default_value = ".")]
+        root: std::path::PathBuf,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Some(Command::Run(args)) => cli::run::run(&args),
+        Some(Command::Scenes) => {
+            for (name, file) in tumble::BUILTIN_SCENES {
+                println!("{name:16} scenes/{file}");
+            }
+            Ok(())
+        }
+        Some(Command::GenAssets { root }) => gen_assets(&root),
+        None => Err(anyhow::anyhow!("no command given; try `tumble --help`")),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn gen_assets(root: &std::path::Path) -> anyhow::Result<()> {
+    for (path, text) in tumble::assets::generated_files() {
+        let full = root.join(&path);
+        std::fs::write(&full, text).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", full.display()))?;
+        println!("wrote {}", full.display());
+    }
+    Ok(())
+}

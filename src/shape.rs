@@ -1,0 +1,175 @@
+//! Rigid shapes: a tet mesh re-centred on its centre of mass, its exact mass properties at unit
+//! density, its outward boundary and the convex hull used by the narrow phase. Shapes are built
+//! once and shared by every body that uses the same mesh.
+
+use crate::formats::TetMesh;
+use glam::{DMat3, DVec3};
+use parry3d_f64::shape::ConvexPolyhedron;
+
+/// Why a mesh cannot be a rigid body.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ShapeError {
+    #[error("the mesh has zero volume (degenerate tetrahedra)")]
+    Degenerate,
+    #[error("the mesh has negative volume {0} (its tetrahedra are inverted)")]
+    Inverted(f64),
+    #[error("the mesh's vertices are all coplanar or coincident: no convex hull")]
+    NoHull,
+    #[error("the mesh has non-finite coordinates")]
+    NonFinite,
+}
+
+/// Volume, centre of mass and inertia tensor (about the centre of mass, unit density) of a
+/// tetrahedral mesh, integrated exactly over its tetrahedra.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MassProperties {
+    pub volume: f64,
+    pub center_of_mass: DVec3,
+    pub unit_inertia: DMat3,
+}
+
+/// Exact mass properties of a union of tetrahedra. Each tetrahedron (a, b, c, d) relative to a
+/// reference point contributes the covariance `V/20 (sum v v^T + s s^T)` with `s = a+b+c+d`
+/// (the canonical-tetrahedron covariance mapped affinely, see Tonon 2004 or Blow & Binstock,
+/// "How to find the inertia tensor (or other mass properties) of a 3D solid body represented by a
+/// triangle mesh", 2004); the inertia tensor is `trace(C) I - C`.
+pub fn tet_mass_properties(vertices: &[DVec3], tetrahedra: &[[u32; 4]]) -> MassProperties {
+    let corners = |t: &[u32; 4]| t.map(|i| vertices[i as usize]);
+    let signed_volume = |[a, b, c, d]: [DVec3; 4]| (b - a).dot((c - a).cross(d - a)) / 6.0;
+
+    let mut volume = 0.0;
+    let mut moment = DVec3::ZERO;
+    for tet in tetrahedra {
+        let p = corners(tet);
+        let v = signed_volume(p);
+        volume += v;
+        moment += v * (p[0] + p[1] + p[2] + p[3]) / 4.0;
+    }
+    let center_of_mass = if volume != 0.0 { moment / volume } else { DVec3::ZERO };
+
+    // Second pass about the centre of mass: no cancellation between large moments.
+    let mut covariance = DMat3::ZERO;
+    for tet in tetrahedra {
+        let p = corners(tet).map(|x| x - center_of_mass);
+        let v = signed_volume(corners(tet));
+        let s = p[0] + p[1] + p[2] + p[3];
+        let mut sum = outer(s, s);
+        for x in p {
+            sum += outer(x, x);
+        }
+        covariance += sum * (v / 20.0);
+    }
+    let trace = covariance.x_axis.x + covariance.y_axis.y + covariance.z_axis.z;
+    let unit_inertia = DMat3::from_diagonal(DVec3::splat(trace)) - covariance;
+    MassProperties { volume, center_of_mass, unit_inertia }
+}
+
+pub(crate) fn outer(a: DVec3, b: DVec3) -> DMat3 {
+    DMat3::from_cols(a * b.x, a * b.y, a * b.z)
+}
+
+/// A rigid shape in body space: the centre of mass is the origin.
+#[derive(Clone)]
+pub struct Shape {
+    /// Rest vertices relative to the centre of mass (the coursework's `origV`).
+    pub rest_vertices: Vec<DVec3>,
+    /// Boundary triangles, wound counter-clockwise seen from outside.
+    pub triangles: Vec<[u32; 3]>,
+    pub tetrahedra: Vec<[u32; 4]>,
+    pub volume: f64,
+    /// Inertia tensor about the centre of mass at density 1.
+    pub unit_inertia: DMat3,
+    /// Convex hull of the rest vertices, queried with each body's pose by the narrow phase.
+    pub hull: ConvexPolyhedron,
+    /// Body-space bounding box of the rest vertices (centre and half extents), from which each
+    /// body's world box is bounded without touching its vertices.
+    pub local_box_center: DVec3,
+    pub local_box_half_extents: DVec3,
+}
+
+impl std::fmt::Debug for Shape {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Shape")
+            .field("vertices", &self.rest_vertices.len())
+            .field("triangles", &self.triangles.len())
+            .field("tetrahedra", &self.tetrahedra.len())
+            .field("volume", &self.volume)
+            .finish()
+    }
+}
+
+impl Shape {
+    pub fn from_tet_mesh(mesh: &TetMesh) -> Result<Shape, ShapeError> {
+        if mesh.vertices.iter().any(|v| !v.is_finite()) {
+            return Err(ShapeError::NonFinite);
+        }
+        let props = tet_mass_properties(&mesh.vertices, &mesh.tetrahedra);
+        let scale = mesh.vertices.iter().map(|v| v.abs().max_element()).fold(0.0, f64::max).max(1e-300);
+        if !props.volume.is_finite() || props.volume.abs() <= 1e-12 * scale.powi(3) {
+            return Err(ShapeError::Degenerate);
+        }
+        if props.volume < 0.0 {
+            return Err(ShapeError::Inverted(props.volume));
+        }
+        let rest_vertices: Vec<DVec3> = mesh.vertices.iter().map(|v| *v - props.center_of_mass).collect();
+        let mut triangles = if mesh.triangles.is_empty() {
+            boundary_triangles(&mesh.tetrahedra)
+        } else {
+            mesh.triangles.clone()
+        };
+        orient_outward(&rest_vertices, &mut triangles);
+        let hull = ConvexPolyhedron::from_convex_hull(&rest_vertices).ok_or(ShapeError::NoHull)?;
+        let (min, max) = rest_vertices
+            .iter()
+            .fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+        Ok(Shape {
+            rest_vertices,
+            triangles,
+            tetrahedra: mesh.tetrahedra.clone(),
+            volume: props.volume,
+            unit_inertia: props.unit_inertia,
+            hull,
+            local_box_center: (min + max) / 2.0,
+            local_box_half_extents: (max - min) / 2.0,
+        })
+    }
+}
+
+/// Faces that belong to exactly one tetrahedron, wound so that the tetrahedron lies behind them.
+fn boundary_triangles(tetrahedra: &[[u32; 4]]) -> Vec<[u32; 3]> {
+    use std::collections::HashMap;
+    // For a positively oriented tet (a,b,c,d) these faces point outward.
+    const FACES: [[usize; 3]; 4] = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]];
+    let mut count: HashMap<[u32; 3], (u32, [u32; 3])> = HashMap::new();
+    let mut order = Vec::new();
+    for tet in tetrahedra {
+        for face in FACES {
+            let tri = face.map(|k| tet[k]);
+            let mut key = tri;
+            key.sort_unstable();
+            let entry = count.entry(key).or_insert_with(|| {
+                order.push(key);
+                (0, tri)
+            });
+            entry.0 += 1;
+        }
+    }
+    order.into_iter().filter_map(|key| count.get(&key).filter(|(n, _)| *n == 1).map(|(_, tri)| *tri)).collect()
+}
+
+/// Makes the boundary face outward as a whole: if the enclosed signed volume (about the centre of
+/// mass, the origin here) is negative, every triangle is flipped.
+fn orient_outward(vertices: &[DVec3], triangles: &mut [[u32; 3]]) {
+    let signed: f64 = triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| vertices[i as usize]);
+            a.dot(b.cross(c))
+        })
+        .sum();
+    if signed < 0.0 {
+        for t in triangles.iter_mut() {
+            t.swap(1, 2);
+        }
+    }
+}
