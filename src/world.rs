@@ -339,6 +339,29 @@ impl World {
         self.bodies.iter().all(|b| b.is_finite())
     }
 
+    /// Contacts at the current poses, for display: (body1, body2 or None for the ground, contact).
+    /// Detection only; nothing is resolved.
+    pub fn current_contacts(&self) -> Vec<(usize, Option<usize>, Contact)> {
+        let aabbs = self.body_aabbs();
+        let mut out = Vec::new();
+        for i in 0..self.bodies.len() {
+            for j in i + 1..self.bodies.len() {
+                if self.collides(i, j) && aabbs[i].overlaps(&aabbs[j]) {
+                    if let Some(c) = self.contact_between(i, j) {
+                        out.push((i, Some(j), c));
+                    }
+                }
+            }
+            let body = &self.bodies[i];
+            if body.is_dynamic() && aabbs[i].min.y <= 0.0 {
+                if let Some(c) = ground_contact(body, &self.shapes[body.shape]) {
+                    out.push((i, None, c));
+                }
+            }
+        }
+        out
+    }
+
     /// World boxes of all bodies (computed from poses).
     pub fn body_aabbs(&self) -> Vec<Aabb> {
         self.bodies.iter().map(|b| body_aabb(b, &self.shapes[b.shape])).collect()
