@@ -18,7 +18,10 @@ pub fn parse_off(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
     }
     let vertex_count = tokens.count("the vertex count", 3, MAX_MESH_ELEMENTS)?;
     let (face_count, face_line) = tokens.index("the face count")?;
-    tokens.index("the edge count")?;
+    // The edge count is optional (some exporters write only two numbers).
+    if tokens.peek().is_some_and(|t| t.line == face_line) {
+        tokens.index("the edge count")?;
+    }
     if face_count > MAX_MESH_ELEMENTS || face_count > tokens.remaining() / 4 {
         return Err(tokens.error(face_line, format!("the face count {face_count} is more than the file can hold")));
     }
