@@ -5,6 +5,9 @@ mod cli;
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
+#[global_allocator]
+static ALLOCATOR: cli::alloc::CountingAlloc = cli::alloc::CountingAlloc;
+
 #[derive(Parser)]
 #[command(name = "tumble", version, about = "Rigid-body simulation of convex tet meshes with distance constraints", long_about = None)]
 struct Cli {
@@ -16,6 +19,9 @@ struct Cli {
 enum Command {
     /// Simulate headless and print a summary (or JSON).
     Run(cli::run::RunArgs),
+    /// Benchmarks: `scale` (run time against scene size).
+    #[command(subcommand)]
+    Bench(BenchCommand),
     /// List the built-in scenes.
     Scenes,
     /// Regenerate tumble's meshes in assets/ and its generated scenes in scenes/.
@@ -26,10 +32,17 @@ enum Command {
     },
 }
 
+#[derive(Subcommand)]
+enum BenchCommand {
+    /// ms/step against N for generated scenes: the coursework's loop vs tumble on 1 and all cores.
+    Scale(cli::bench_scale::ScaleArgs),
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Some(Command::Run(args)) => cli::run::run(&args),
+        Some(Command::Bench(BenchCommand::Scale(args))) => cli::bench_scale::run(&args),
         Some(Command::Scenes) => {
             for (name, file) in tumble::BUILTIN_SCENES {
                 println!("{name:16} scenes/{file}");

@@ -1,5 +1,8 @@
 //! The `tumble` command line: argument types shared by the subcommands, and the subcommands.
 
+pub mod alloc;
+pub mod bench_scale;
+pub mod plot;
 pub mod run;
 
 use clap::Args;
