@@ -4,7 +4,6 @@
 use crate::body::RigidBody;
 use crate::settings::ConstraintSchedule;
 use glam::DVec3;
-use std::collections::BTreeSet;
 
 /// One inequality on the distance between two body-space points: `|p1 - p2| >= reference`
 /// (lower) or `|p1 - p2| <= reference` (upper).
@@ -184,29 +183,37 @@ fn sweep(constraints: &[DistanceConstraint], bodies: &mut [RigidBody], tolerance
 /// flagged, which means every constraint was checked valid after its bodies last moved.
 fn work_list(constraints: &[DistanceConstraint], by_body: &[Vec<u32>], bodies: &mut [RigidBody], tolerance: f64, max_visits: usize) -> ConstraintReport {
     let mut report = ConstraintReport::default();
-    let mut flagged: BTreeSet<u32> = (0..constraints.len() as u32).collect();
-    let mut cursor = 0u32;
-    loop {
-        let Some(index) = flagged.range(cursor..).next().or_else(|| flagged.iter().next()).copied() else { break };
-        if report.visits >= max_visits {
-            break;
+    let count = constraints.len();
+    let mut flagged = vec![true; count];
+    let mut pending = count;
+    let mut index = 0;
+    while pending > 0 && report.visits < max_visits {
+        // Next flagged constraint in cyclic order (a bool scan: far cheaper than a visit).
+        while !flagged[index] {
+            index = (index + 1) % count;
         }
-        flagged.remove(&index);
-        cursor = index + 1;
+        flagged[index] = false;
+        pending -= 1;
         report.visits += 1;
-        let constraint = &constraints[index as usize];
-        if !visit(constraint, bodies, tolerance) {
-            continue;
-        }
-        report.corrections += 1;
-        for body in [constraint.body1, constraint.body2] {
-            if !bodies[body].is_dynamic() {
-                continue;
+        let constraint = &constraints[index];
+        if visit(constraint, bodies, tolerance) {
+            report.corrections += 1;
+            for body in [constraint.body1, constraint.body2] {
+                if !bodies[body].is_dynamic() {
+                    continue;
+                }
+                for &other in &by_body[body] {
+                    let other = other as usize;
+                    // The corrected constraint itself now sits exactly on its bound.
+                    if other != index && !flagged[other] {
+                        flagged[other] = true;
+                        pending += 1;
+                    }
+                }
             }
-            // The corrected constraint itself now sits exactly on its bound.
-            flagged.extend(by_body[body].iter().copied().filter(|&other| other != index));
         }
+        index = (index + 1) % count;
     }
-    report.budget_hit = !flagged.is_empty();
+    report.budget_hit = pending > 0;
     report
 }

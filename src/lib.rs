@@ -6,6 +6,7 @@
 //! constraints in flat arrays; [`World::step`] runs the stages in order: integrate, broad phase,
 //! narrow phase and contact resolution, ground contacts, constraints, pose check.
 
+pub mod accuracy;
 pub mod assets;
 pub mod body;
 pub mod broad_phase;

@@ -19,7 +19,7 @@ struct Cli {
 enum Command {
     /// Simulate headless and print a summary (or JSON).
     Run(cli::run::RunArgs),
-    /// Benchmarks: `scale` (run time against scene size).
+    /// Benchmarks: `scale` (run time against scene size) and `accuracy` (error against run time).
     #[command(subcommand)]
     Bench(BenchCommand),
     /// List the built-in scenes.
@@ -36,6 +36,8 @@ enum Command {
 enum BenchCommand {
     /// ms/step against N for generated scenes: the coursework's loop vs tumble on 1 and all cores.
     Scale(cli::bench_scale::ScaleArgs),
+    /// Error against run time per scenario, setting combination and time step.
+    Accuracy(cli::bench_accuracy::AccuracyArgs),
 }
 
 fn main() -> ExitCode {
@@ -43,6 +45,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Some(Command::Run(args)) => cli::run::run(&args),
         Some(Command::Bench(BenchCommand::Scale(args))) => cli::bench_scale::run(&args),
+        Some(Command::Bench(BenchCommand::Accuracy(args))) => cli::bench_accuracy::run(&args),
         Some(Command::Scenes) => {
             for (name, file) in tumble::BUILTIN_SCENES {
                 println!("{name:16} scenes/{file}");

@@ -6,7 +6,7 @@ use crate::broad_phase::{Aabb, Grid, body_aabb, typical_cell_size};
 use crate::constraint::{DistanceConstraint, pair_mut as bodies_pair_mut, solve_constraints};
 use crate::contact::{Contact, ContactParams, resolve_contact};
 use crate::integrate::integrate_bodies;
-use crate::narrow_phase::{body_contact, ground_contact};
+use crate::narrow_phase::{body_contact, body_contact_patch, ground_contact};
 use crate::settings::{BroadPhase, Settings};
 use crate::shape::Shape;
 use crate::stats::StepStats;
@@ -143,7 +143,8 @@ impl World {
 
     fn contact_between(&self, i: usize, j: usize) -> Option<Contact> {
         let (a, b) = (&self.bodies[i], &self.bodies[j]);
-        body_contact(a, &self.shapes[a.shape], b, &self.shapes[b.shape])
+        let detect = if self.settings.contact_patches { body_contact_patch } else { body_contact };
+        detect(a, &self.shapes[a.shape], b, &self.shapes[b.shape])
     }
 
     fn refresh_aabb(&mut self, index: usize) {
@@ -296,7 +297,7 @@ impl World {
                 continue;
             }
             let body = &self.bodies[index];
-            let Some(contact) = ground_contact(body, &self.shapes[body.shape]) else { continue };
+            let Some(contact) = ground_contact(body, &self.shapes[body.shape], self.settings.contact_patches) else { continue };
             resolve_contact(&mut self.bodies[index], &mut ground, &contact, params);
             stats.ground_contacts += 1;
             stats.max_penetration = stats.max_penetration.max(contact.depth);
@@ -359,7 +360,7 @@ impl World {
             }
             let body = &self.bodies[i];
             if body.is_dynamic() && aabbs[i].min.y <= 0.0 {
-                if let Some(c) = ground_contact(body, &self.shapes[body.shape]) {
+                if let Some(c) = ground_contact(body, &self.shapes[body.shape], self.settings.contact_patches) {
                     out.push((i, None, c));
                 }
             }

@@ -1,6 +1,7 @@
 //! The `tumble` command line: argument types shared by the subcommands, and the subcommands.
 
 pub mod alloc;
+pub mod bench_accuracy;
 pub mod bench_scale;
 pub mod plot;
 pub mod run;
@@ -34,6 +35,9 @@ pub struct SettingsArgs {
     /// Contacts closing slower than this (units/s) bounce with e = 0.
     #[arg(long, value_name = "SPEED")]
     pub restitution_threshold: Option<f64>,
+    /// Contacts act at the centroid of the contact patch instead of one deepest point.
+    #[arg(long)]
+    pub contact_patches: bool,
     /// Substeps per step.
     #[arg(long, value_name = "N")]
     pub substeps: Option<u32>,
@@ -67,6 +71,7 @@ impl SettingsArgs {
             s.tolerance = v;
         }
         s.skip_separating_contacts |= self.skip_separating_contacts;
+        s.contact_patches |= self.contact_patches;
         if let Some(v) = self.restitution_threshold {
             anyhow::ensure!(v.is_finite() && v >= 0.0, "--restitution-threshold must be non-negative, got {v}");
             s.restitution_threshold = v;
