@@ -153,3 +153,28 @@ pub fn by_name(name: &str, n: usize, settings: Settings) -> Option<World> {
         _ => None,
     }
 }
+
+/// A random scene of `n` bodies from tumble's meshes for stress tests: densities spanning 1:1000,
+/// speeds up to `max_speed`, random orientations and spins, spread over a volume above the
+/// ground so that many collide. Deterministic for a seed.
+pub fn random(seed: u64, n: usize, max_speed: f64, settings: Settings) -> World {
+    let shapes: Vec<Shape> = assets::all_meshes().iter().map(|(_, m)| shape_of(m)).collect();
+    let names = assets::all_meshes().iter().map(|(name, _)| name.to_string()).collect();
+    let mut rng = Rng::new(seed);
+    let extent = 8.0 * (n as f64).cbrt() * 3.0;
+    let bodies = (0..n)
+        .map(|k| {
+            let shape = (rng.next_u64() % shapes.len() as u64) as usize;
+            let density = 10f64.powf(rng.range(0.0, 3.0));
+            let position = DVec3::new(rng.range(-extent, extent), rng.range(12.0, 12.0 + 2.0 * extent), rng.range(-extent, extent));
+            let mut b = new_body(&shapes, shape, density, k % 17 == 16, position, rng.tilt(std::f64::consts::PI));
+            if !b.fixed {
+                let dir = DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
+                b.linear_velocity = dir.normalize_or_zero() * rng.range(0.0, max_speed);
+                b.angular_velocity = DVec3::new(rng.range(-3.0, 3.0), rng.range(-3.0, 3.0), rng.range(-3.0, 3.0));
+            }
+            b
+        })
+        .collect();
+    World::new(shapes, names, bodies, Vec::new(), settings)
+}
