@@ -13,6 +13,7 @@ pub mod broad_phase;
 pub mod constraint;
 pub mod contact;
 pub mod formats;
+pub mod fuzzing;
 pub mod generate;
 pub mod integrate;
 pub mod narrow_phase;
