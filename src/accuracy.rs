@@ -89,7 +89,10 @@ impl Outcome {
         self.metrics[0].1
     }
     pub fn metric(&self, name: &str) -> Option<f64> {
-        self.metrics.iter().find(|(n, _)| n == name).map(|(_, v)| *v)
+        self.metrics
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| *v)
     }
 }
 
@@ -97,17 +100,46 @@ fn shape(mesh: &crate::formats::TetMesh) -> Shape {
     Shape::from_tet_mesh(mesh).expect("tumble's meshes are valid")
 }
 
-fn body_on(shape: &Shape, index: usize, density: f64, fixed: bool, position: DVec3, orientation: DQuat) -> RigidBody {
-    RigidBody::new(index, shape.volume, shape.unit_inertia, density, fixed, position, orientation)
+fn body_on(
+    shape: &Shape,
+    index: usize,
+    density: f64,
+    fixed: bool,
+    position: DVec3,
+    orientation: DQuat,
+) -> RigidBody {
+    RigidBody::new(
+        index,
+        shape.volume,
+        shape.unit_inertia,
+        density,
+        fixed,
+        position,
+        orientation,
+    )
 }
 
 fn single(shape: Shape, body: RigidBody, settings: Settings) -> World {
-    World::new(vec![shape], vec!["body".into()], vec![body], Vec::new(), settings)
+    World::new(
+        vec![shape],
+        vec!["body".into()],
+        vec![body],
+        Vec::new(),
+        settings,
+    )
 }
 
 /// Runs `world` for `duration` simulated seconds calling `observe` after every step.
-fn simulate(world: &mut World, duration: f64, mut observe: impl FnMut(&World, &crate::StepStats)) -> f64 {
-    let steps = if world.settings.time_step > 0.0 { (duration / world.settings.time_step).round() as usize } else { 0 };
+fn simulate(
+    world: &mut World,
+    duration: f64,
+    mut observe: impl FnMut(&World, &crate::StepStats),
+) -> f64 {
+    let steps = if world.settings.time_step > 0.0 {
+        (duration / world.settings.time_step).round() as usize
+    } else {
+        0
+    };
     let start = Instant::now();
     for _ in 0..steps {
         let stats = world.step();
@@ -120,15 +152,27 @@ pub fn run(scenario: Scenario, settings: &Settings) -> Outcome {
     let settings = settings.clone();
     let (wall, metrics, finite) = match scenario {
         Scenario::FreeFall => free_fall(settings),
-        Scenario::SpinEllipsoid => spin(shape(&assets::ellipsoid(DVec3::new(6.0, 4.0, 2.5), 10, 20)), DVec3::Y, settings),
-        Scenario::SpinLongOctahedron => spin(shape(&assets::octahedron(DVec3::new(3.0, 10.0, 4.0))), DVec3::Z, settings),
+        Scenario::SpinEllipsoid => spin(
+            shape(&assets::ellipsoid(DVec3::new(6.0, 4.0, 2.5), 10, 20)),
+            DVec3::Y,
+            settings,
+        ),
+        Scenario::SpinLongOctahedron => spin(
+            shape(&assets::octahedron(DVec3::new(3.0, 10.0, 4.0))),
+            DVec3::Z,
+            settings,
+        ),
         Scenario::Bounce => bounce(settings),
         Scenario::Pendulum => pendulum(settings),
         Scenario::Tower => tower(settings),
         Scenario::Chains => chains(settings),
         Scenario::MixedEnergy => mixed_energy(settings),
     };
-    Outcome { wall_per_sim_second: wall, metrics, finite }
+    Outcome {
+        wall_per_sim_second: wall,
+        metrics,
+        finite,
+    }
 }
 
 type Measured = (f64, Vec<(String, f64)>, bool);
@@ -140,7 +184,14 @@ fn m(name: &str, value: f64) -> (String, f64) {
 /// A box thrown upwards high above the ground: position error against `x0 + v0 t + g t^2 / 2`.
 fn free_fall(settings: Settings) -> Measured {
     let s = shape(&assets::cuboid(DVec3::new(1.0, 1.0, 1.0)));
-    let mut b = body_on(&s, 0, 100.0, false, DVec3::new(0.0, 1000.0, 0.0), DQuat::IDENTITY);
+    let mut b = body_on(
+        &s,
+        0,
+        100.0,
+        false,
+        DVec3::new(0.0, 1000.0, 0.0),
+        DQuat::IDENTITY,
+    );
     let v0 = DVec3::new(3.0, 20.0, 1.0);
     b.linear_velocity = v0;
     let (x0, g) = (b.position, settings.gravity);
@@ -157,7 +208,13 @@ fn free_fall(settings: Settings) -> Measured {
 
 /// Body-frame reference of torque-free motion: Euler's equations and the quaternion kinematics
 /// integrated with classical RK4 at a tiny step.
-pub fn torque_free_reference(inertia: DMat3, w_body0: DVec3, q0: DQuat, duration: f64, h: f64) -> Vec<(f64, DVec3, DQuat)> {
+pub fn torque_free_reference(
+    inertia: DMat3,
+    w_body0: DVec3,
+    q0: DQuat,
+    duration: f64,
+    h: f64,
+) -> Vec<(f64, DVec3, DQuat)> {
     let inverse = inertia.inverse();
     let f = |w: DVec3, q: DQuat| -> (DVec3, DQuat) {
         let dw = inverse * (-w.cross(inertia * w));
@@ -196,7 +253,10 @@ fn first_flip(series: impl Iterator<Item = (f64, f64)>) -> f64 {
 
 /// Torque-free spin near the intermediate principal axis, no gravity, no ground.
 fn spin(s: Shape, axis: DVec3, settings: Settings) -> Measured {
-    let settings = Settings { gravity: DVec3::ZERO, ..settings };
+    let settings = Settings {
+        gravity: DVec3::ZERO,
+        ..settings
+    };
     let q0 = DQuat::IDENTITY;
     let mut b = body_on(&s, 0, 10.0, false, DVec3::new(0.0, 1000.0, 0.0), q0);
     let w0 = 2.0 * axis + DVec3::new(0.02, 0.02, 0.02);
@@ -213,7 +273,10 @@ fn spin(s: Shape, axis: DVec3, settings: Settings) -> Measured {
         let l = b.world_inertia() * b.angular_velocity;
         l_err = l_err.max((l - l0).length() / l0.length());
         e_err = e_err.max((0.5 * b.angular_velocity.dot(l) - e0).abs() / e0);
-        spin_axis.push((w.time, (b.orientation.inverse() * b.angular_velocity).dot(axis)));
+        spin_axis.push((
+            w.time,
+            (b.orientation.inverse() * b.angular_velocity).dot(axis),
+        ));
     });
     let reference = torque_free_reference(inertia, w0, q0, duration, 1e-4);
     let reference_flip = first_flip(reference.iter().map(|(t, w, _)| (*t, w.dot(axis))));
@@ -222,7 +285,13 @@ fn spin(s: Shape, axis: DVec3, settings: Settings) -> Measured {
     let b = &world.bodies[0];
     let w_world_ref = q_ref * w_ref;
     let w_error = (b.angular_velocity - w_world_ref).length() / w0.length();
-    let flip_error = if reference_flip.is_nan() { f64::NAN } else if flip.is_nan() { duration } else { (flip - reference_flip).abs() };
+    let flip_error = if reference_flip.is_nan() {
+        f64::NAN
+    } else if flip.is_nan() {
+        duration
+    } else {
+        (flip - reference_flip).abs()
+    };
     let finite = world.all_finite();
     (
         wall,
@@ -242,7 +311,14 @@ fn spin(s: Shape, axis: DVec3, settings: Settings) -> Measured {
 fn bounce(settings: Settings) -> Measured {
     let h = 2.0;
     let s = shape(&assets::octahedron(DVec3::splat(h)));
-    let b = body_on(&s, 0, 100.0, false, DVec3::new(0.0, 20.0 + h, 0.0), DQuat::IDENTITY);
+    let b = body_on(
+        &s,
+        0,
+        100.0,
+        false,
+        DVec3::new(0.0, 20.0 + h, 0.0),
+        DQuat::IDENTITY,
+    );
     let e = settings.restitution;
     let mut world = single(s, b, settings);
     let mut heights = vec![20.0];
@@ -271,7 +347,14 @@ fn bounce(settings: Settings) -> Measured {
         error = 1.0;
     }
     let finite = world.all_finite();
-    (wall, vec![m("apex_ratio_error", error), m("apexes_seen", heights.len() as f64 - 1.0)], finite)
+    (
+        wall,
+        vec![
+            m("apex_ratio_error", error),
+            m("apexes_seen", heights.len() as f64 - 1.0),
+        ],
+        finite,
+    )
 }
 
 /// A box hanging from a fixed box by a rigid distance constraint (lower = upper = 1) attached at
@@ -284,13 +367,36 @@ fn pendulum(settings: Settings) -> Measured {
     let (length, theta0): (f64, f64) = (20.0, 0.2);
     let pivot = DVec3::new(0.0, 60.0, 0.0);
     let anchor = body_on(&s, 0, 100.0, true, pivot, DQuat::IDENTITY);
-    let bob = body_on(&s, 0, 100.0, false, pivot + length * DVec3::new(theta0.sin(), -theta0.cos(), 0.0), DQuat::IDENTITY);
+    let bob = body_on(
+        &s,
+        0,
+        100.0,
+        false,
+        pivot + length * DVec3::new(theta0.sin(), -theta0.cos(), 0.0),
+        DQuat::IDENTITY,
+    );
     let constraints = [false, true]
         .into_iter()
-        .map(|is_upper| DistanceConstraint { body1: 0, body2: 1, vertex1: centre, vertex2: centre, local1: DVec3::ZERO, local2: DVec3::ZERO, reference: length, is_upper, rest_length: length })
+        .map(|is_upper| DistanceConstraint {
+            body1: 0,
+            body2: 1,
+            vertex1: centre,
+            vertex2: centre,
+            local1: DVec3::ZERO,
+            local2: DVec3::ZERO,
+            reference: length,
+            is_upper,
+            rest_length: length,
+        })
         .collect();
     let g = settings.gravity.length();
-    let mut world = World::new(vec![s], vec!["box".into()], vec![anchor, bob], constraints, settings);
+    let mut world = World::new(
+        vec![s],
+        vec!["box".into()],
+        vec![anchor, bob],
+        constraints,
+        settings,
+    );
     let mut crossings = Vec::new();
     let mut previous: Option<(f64, f64)> = None;
     let mut amplitude_late: f64 = 0.0;
@@ -309,12 +415,27 @@ fn pendulum(settings: Settings) -> Measured {
         }
         previous = Some((w.time, theta));
     });
-    let closed = 2.0 * std::f64::consts::PI * (length / g).sqrt() * (1.0 + theta0.powi(2) / 16.0 + 11.0 * theta0.powi(4) / 3072.0);
-    let period = if crossings.len() >= 3 { 2.0 * (crossings[crossings.len() - 1] - crossings[0]) / (crossings.len() - 1) as f64 } else { f64::INFINITY };
+    let closed = 2.0
+        * std::f64::consts::PI
+        * (length / g).sqrt()
+        * (1.0 + theta0.powi(2) / 16.0 + 11.0 * theta0.powi(4) / 3072.0);
+    let period = if crossings.len() >= 3 {
+        2.0 * (crossings[crossings.len() - 1] - crossings[0]) / (crossings.len() - 1) as f64
+    } else {
+        f64::INFINITY
+    };
     let finite = world.all_finite();
     (
         wall,
-        vec![m("period_error", ((period - closed) / closed).abs()), m("amplitude_error", ((amplitude_late - theta0) / theta0).abs()), m("period", period), m("closed_form_period", closed)],
+        vec![
+            m("period_error", ((period - closed) / closed).abs()),
+            m(
+                "amplitude_error",
+                ((amplitude_late - theta0) / theta0).abs(),
+            ),
+            m("period", period),
+            m("closed_form_period", closed),
+        ],
         finite,
     )
 }
@@ -323,7 +444,20 @@ fn pendulum(settings: Settings) -> Measured {
 fn tower(settings: Settings) -> Measured {
     let s = shape(&assets::cuboid(DVec3::new(6.0, 3.0, 4.0)));
     let densities = [3000.0, 1000.0, 200.0, 50.0];
-    let bodies: Vec<RigidBody> = densities.iter().enumerate().map(|(k, &rho)| body_on(&s, 0, rho, false, DVec3::new(0.0, 3.0 + 6.0 * k as f64, 0.0), DQuat::IDENTITY)).collect();
+    let bodies: Vec<RigidBody> = densities
+        .iter()
+        .enumerate()
+        .map(|(k, &rho)| {
+            body_on(
+                &s,
+                0,
+                rho,
+                false,
+                DVec3::new(0.0, 3.0 + 6.0 * k as f64, 0.0),
+                DQuat::IDENTITY,
+            )
+        })
+        .collect();
     let start: Vec<DVec3> = bodies.iter().map(|b| b.position).collect();
     let mut world = World::new(vec![s], vec!["box".into()], bodies, Vec::new(), settings);
     let duration = Scenario::Tower.duration();
@@ -338,12 +472,21 @@ fn tower(settings: Settings) -> Measured {
         }
     });
     let finite = world.all_finite();
-    (wall, vec![m("drift", drift), m("jitter_speed", jitter), m("max_tilt_rad", tilt)], finite)
+    (
+        wall,
+        vec![
+            m("drift", drift),
+            m("jitter_speed", jitter),
+            m("max_tilt_rad", tilt),
+        ],
+        finite,
+    )
 }
 
 /// The built-in two-chain scene: worst constraint violation relative to the rest length.
 fn chains(settings: Settings) -> Measured {
-    let mut world = crate::scene::load("two-chain", &crate::ConstraintsChoice::Auto, settings).expect("built-in scene");
+    let mut world = crate::scene::load("two-chain", &crate::ConstraintsChoice::Auto, settings)
+        .expect("built-in scene");
     let (mut worst, mut visits, mut steps, mut budget_hits) = (0.0f64, 0usize, 0usize, 0usize);
     let wall = simulate(&mut world, Scenario::Chains.duration(), |w, stats| {
         for c in &w.constraints {
@@ -354,18 +497,37 @@ fn chains(settings: Settings) -> Measured {
         budget_hits += stats.budget_hit as usize;
     });
     let finite = world.all_finite();
-    (wall, vec![m("worst_relative_violation", worst), m("visits_per_step", visits as f64 / steps.max(1) as f64), m("budget_hits", budget_hits as f64)], finite)
+    (
+        wall,
+        vec![
+            m("worst_relative_violation", worst),
+            m("visits_per_step", visits as f64 / steps.max(1) as f64),
+            m("budget_hits", budget_hits as f64),
+        ],
+        finite,
+    )
 }
 
 /// The built-in mixed scene with e = 1: total energy should stay what it was.
 fn mixed_energy(settings: Settings) -> Measured {
-    let settings = Settings { restitution: 1.0, ..settings };
-    let mut world = crate::scene::load("mixed", &crate::ConstraintsChoice::None, settings).expect("built-in scene");
+    let settings = Settings {
+        restitution: 1.0,
+        ..settings
+    };
+    let mut world = crate::scene::load("mixed", &crate::ConstraintsChoice::None, settings)
+        .expect("built-in scene");
     let e0 = world.total_energy();
     let mut worst: f64 = 0.0;
     let wall = simulate(&mut world, Scenario::MixedEnergy.duration(), |w, _| {
         worst = worst.max((w.total_energy() - e0).abs() / e0.abs());
     });
     let finite = world.all_finite();
-    (wall, vec![m("energy_drift", worst), m("final_energy_ratio", world.total_energy() / e0)], finite)
+    (
+        wall,
+        vec![
+            m("energy_drift", worst),
+            m("final_energy_ratio", world.total_energy() / e0),
+        ],
+        finite,
+    )
 }

@@ -27,7 +27,10 @@ pub struct DistanceConstraint {
 impl DistanceConstraint {
     /// Current constrained points in world space.
     pub fn points(&self, bodies: &[RigidBody]) -> (DVec3, DVec3) {
-        (bodies[self.body1].world_point(self.local1), bodies[self.body2].world_point(self.local2))
+        (
+            bodies[self.body1].world_point(self.local1),
+            bodies[self.body2].world_point(self.local2),
+        )
     }
 
     /// `C = |p1 - p2| - reference`.
@@ -39,15 +42,27 @@ impl DistanceConstraint {
     /// How far the distance lies outside the bound (0 when satisfied).
     pub fn violation(&self, bodies: &[RigidBody]) -> f64 {
         let c = self.value(bodies);
-        if self.is_upper { c.max(0.0) } else { (-c).max(0.0) }
+        if self.is_upper {
+            c.max(0.0)
+        } else {
+            (-c).max(0.0)
+        }
     }
 
     fn position_valid(&self, c: f64, tolerance: f64) -> bool {
-        if self.is_upper { c <= tolerance } else { c >= -tolerance }
+        if self.is_upper {
+            c <= tolerance
+        } else {
+            c >= -tolerance
+        }
     }
 }
 
-pub(crate) fn pair_mut(bodies: &mut [RigidBody], i: usize, j: usize) -> (&mut RigidBody, &mut RigidBody) {
+pub(crate) fn pair_mut(
+    bodies: &mut [RigidBody],
+    i: usize,
+    j: usize,
+) -> (&mut RigidBody, &mut RigidBody) {
     assert_ne!(i, j, "a constraint or contact needs two distinct bodies");
     if i < j {
         let (a, b) = bodies.split_at_mut(j);
@@ -58,11 +73,15 @@ pub(crate) fn pair_mut(bodies: &mut [RigidBody], i: usize, j: usize) -> (&mut Ri
     }
 }
 
-
 /// Projects the centres of mass back onto the bound when the constraint is violated beyond
 /// `tolerance`: with `n = (p1 - p2)/|p1 - p2|`, `COM_1 -= w_1 C n`, `COM_2 += w_2 C n`.
 /// Returns true when it corrected something (the coursework's `!positionWasValid`).
-pub fn resolve_position(constraint: &DistanceConstraint, body1: &mut RigidBody, body2: &mut RigidBody, tolerance: f64) -> bool {
+pub fn resolve_position(
+    constraint: &DistanceConstraint,
+    body1: &mut RigidBody,
+    body2: &mut RigidBody,
+    tolerance: f64,
+) -> bool {
     let p1 = body1.world_point(constraint.local1);
     let p2 = body2.world_point(constraint.local2);
     let delta = p1 - p2;
@@ -85,7 +104,12 @@ pub fn resolve_position(constraint: &DistanceConstraint, body1: &mut RigidBody, 
 
 /// Projects the velocities onto `J v = 0` with `J = [n, r1 x n, -n, -(r2 x n)]`:
 /// `v <- v - M^-1 J^T (J v) / (J M^-1 J^T)`. Returns true when it changed them.
-pub fn resolve_velocity(constraint: &DistanceConstraint, body1: &mut RigidBody, body2: &mut RigidBody, tolerance: f64) -> bool {
+pub fn resolve_velocity(
+    constraint: &DistanceConstraint,
+    body1: &mut RigidBody,
+    body2: &mut RigidBody,
+    tolerance: f64,
+) -> bool {
     let p1 = body1.world_point(constraint.local1);
     let p2 = body2.world_point(constraint.local2);
     let delta = p1 - p2;
@@ -106,7 +130,10 @@ pub fn resolve_velocity(constraint: &DistanceConstraint, body1: &mut RigidBody, 
     let inverse_mass2 = body2.effective_inverse_mass();
     let inverse_inertia1 = body1.effective_world_inverse_inertia();
     let inverse_inertia2 = body2.effective_world_inverse_inertia();
-    let jmj = inverse_mass1 + inverse_mass2 + arm1_n.dot(inverse_inertia1 * arm1_n) + arm2_n.dot(inverse_inertia2 * arm2_n);
+    let jmj = inverse_mass1
+        + inverse_mass2
+        + arm1_n.dot(inverse_inertia1 * arm1_n)
+        + arm2_n.dot(inverse_inertia2 * arm2_n);
     if jmj == 0.0 {
         return false;
     }
@@ -152,13 +179,20 @@ pub fn solve_constraints(
     }
     match schedule {
         ConstraintSchedule::Sweep => sweep(constraints, bodies, tolerance, max_visits),
-        ConstraintSchedule::Sparse => work_list(constraints, by_body, bodies, tolerance, max_visits),
+        ConstraintSchedule::Sparse => {
+            work_list(constraints, by_body, bodies, tolerance, max_visits)
+        }
     }
 }
 
 /// The coursework's loop: cycle through the list; stop after a streak of as many unchanged visits
 /// as there are constraints (a full quiet pass), or when the budget is spent.
-fn sweep(constraints: &[DistanceConstraint], bodies: &mut [RigidBody], tolerance: f64, max_visits: usize) -> ConstraintReport {
+fn sweep(
+    constraints: &[DistanceConstraint],
+    bodies: &mut [RigidBody],
+    tolerance: f64,
+    max_visits: usize,
+) -> ConstraintReport {
     let mut report = ConstraintReport::default();
     let mut quiet_streak = 0;
     let mut index = 0;
@@ -181,7 +215,13 @@ fn sweep(constraints: &[DistanceConstraint], bodies: &mut [RigidBody], tolerance
 /// movable body with it. Keeping the cyclic order keeps the sweep's Gauss-Seidel propagation along
 /// chains (a FIFO work list converges more slowly and spends more visits). Ends when nothing is
 /// flagged, which means every constraint was checked valid after its bodies last moved.
-fn work_list(constraints: &[DistanceConstraint], by_body: &[Vec<u32>], bodies: &mut [RigidBody], tolerance: f64, max_visits: usize) -> ConstraintReport {
+fn work_list(
+    constraints: &[DistanceConstraint],
+    by_body: &[Vec<u32>],
+    bodies: &mut [RigidBody],
+    tolerance: f64,
+    max_visits: usize,
+) -> ConstraintReport {
     let mut report = ConstraintReport::default();
     let count = constraints.len();
     let mut flagged = vec![true; count];

@@ -14,9 +14,23 @@ fn text(data: &[u8]) -> Option<&str> {
 /// A mesh that loads becomes a shape, a body and a few simulated steps.
 fn exercise_mesh(mesh: &crate::formats::TetMesh) {
     if let Ok(shape) = Shape::from_tet_mesh(mesh) {
-        let body = crate::RigidBody::new(0, shape.volume, shape.unit_inertia, 1.0, false, glam::DVec3::new(0.0, 5.0, 0.0), glam::DQuat::IDENTITY);
+        let body = crate::RigidBody::new(
+            0,
+            shape.volume,
+            shape.unit_inertia,
+            1.0,
+            false,
+            glam::DVec3::new(0.0, 5.0, 0.0),
+            glam::DQuat::IDENTITY,
+        );
         if body.inverse_mass.is_finite() && body.inverse_inertia.is_finite() {
-            let mut world = crate::World::new(vec![shape], vec!["fuzz".into()], vec![body], Vec::new(), Settings::default());
+            let mut world = crate::World::new(
+                vec![shape],
+                vec!["fuzz".into()],
+                vec![body],
+                Vec::new(),
+                Settings::default(),
+            );
             for _ in 0..3 {
                 world.step();
             }

@@ -32,8 +32,16 @@ impl Rng {
     }
     /// A rotation by a uniformly random axis and an angle up to `max_angle`.
     pub fn tilt(&mut self, max_angle: f64) -> DQuat {
-        let axis = DVec3::new(self.range(-1.0, 1.0), self.range(-1.0, 1.0), self.range(-1.0, 1.0));
-        let axis = if axis.length() > 1e-6 { axis.normalize() } else { DVec3::X };
+        let axis = DVec3::new(
+            self.range(-1.0, 1.0),
+            self.range(-1.0, 1.0),
+            self.range(-1.0, 1.0),
+        );
+        let axis = if axis.length() > 1e-6 {
+            axis.normalize()
+        } else {
+            DVec3::X
+        };
         DQuat::from_axis_angle(axis, self.range(-max_angle, max_angle))
     }
 }
@@ -42,19 +50,41 @@ fn shape_of(mesh: &crate::formats::TetMesh) -> Shape {
     Shape::from_tet_mesh(mesh).expect("generated meshes are valid")
 }
 
-fn new_body(shapes: &[Shape], shape: usize, density: f64, fixed: bool, position: DVec3, orientation: DQuat) -> RigidBody {
+fn new_body(
+    shapes: &[Shape],
+    shape: usize,
+    density: f64,
+    fixed: bool,
+    position: DVec3,
+    orientation: DQuat,
+) -> RigidBody {
     let s = &shapes[shape];
-    RigidBody::new(shape, s.volume, s.unit_inertia, density, fixed, position, orientation)
+    RigidBody::new(
+        shape,
+        s.volume,
+        s.unit_inertia,
+        density,
+        fixed,
+        position,
+        orientation,
+    )
 }
 
 /// `sparse-N`: boxes and tetrahedra alternating, density 100, small tilts, in a square grid of
 /// columns over x, z in [-200, 200] on 4 layers at y = 10, 73, 137, 200. No constraints.
 pub fn sparse(n: usize, settings: Settings) -> World {
-    let shapes = vec![shape_of(&assets::cuboid(DVec3::new(6.0, 3.0, 4.0))), shape_of(&assets::tetrahedron(6.0))];
+    let shapes = vec![
+        shape_of(&assets::cuboid(DVec3::new(6.0, 3.0, 4.0))),
+        shape_of(&assets::tetrahedron(6.0)),
+    ];
     let layers = [10.0, 73.0, 137.0, 200.0];
     let per_layer = n.div_ceil(layers.len()).max(1);
     let side = (per_layer as f64).sqrt().ceil().max(1.0) as usize;
-    let spacing = if side > 1 { 400.0 / (side - 1) as f64 } else { 0.0 };
+    let spacing = if side > 1 {
+        400.0 / (side - 1) as f64
+    } else {
+        0.0
+    };
     let mut rng = Rng::new(0x5EED_0001);
     let mut bodies = Vec::with_capacity(n);
     'outer: for &y in &layers {
@@ -67,33 +97,68 @@ pub fn sparse(n: usize, settings: Settings) -> World {
                     continue;
                 }
                 let shape = bodies.len() % 2;
-                let position = DVec3::new(-200.0 + spacing * i as f64, y, -200.0 + spacing * k as f64);
-                bodies.push(new_body(&shapes, shape, 100.0, false, position, rng.tilt(0.3)));
+                let position =
+                    DVec3::new(-200.0 + spacing * i as f64, y, -200.0 + spacing * k as f64);
+                bodies.push(new_body(
+                    &shapes,
+                    shape,
+                    100.0,
+                    false,
+                    position,
+                    rng.tilt(0.3),
+                ));
             }
         }
     }
-    World::new(shapes, vec!["box".into(), "tetrahedron".into()], bodies, Vec::new(), settings)
+    World::new(
+        shapes,
+        vec!["box".into(), "tetrahedron".into()],
+        bodies,
+        Vec::new(),
+        settings,
+    )
 }
 
 /// `pile-N`: N mixed bodies dropped close together into a square bin of four fixed walls, so
 /// contacts dominate.
 pub fn pile(n: usize, settings: Settings) -> World {
-    let meshes = [assets::cuboid(DVec3::new(3.0, 1.5, 2.0)), assets::tetrahedron(3.0), assets::octahedron(DVec3::splat(2.5))];
+    let meshes = [
+        assets::cuboid(DVec3::new(3.0, 1.5, 2.0)),
+        assets::tetrahedron(3.0),
+        assets::octahedron(DVec3::splat(2.5)),
+    ];
     let mut shapes: Vec<Shape> = meshes.iter().map(shape_of).collect();
     let per_side = ((n as f64 / 8.0).sqrt().ceil() as usize).max(2);
     let pitch = 6.5;
     let half = pitch * per_side as f64 / 2.0 + 2.0;
     let wall_height = 40.0;
-    shapes.push(shape_of(&assets::cuboid(DVec3::new(half + 2.0, wall_height / 2.0, 1.0))));
+    shapes.push(shape_of(&assets::cuboid(DVec3::new(
+        half + 2.0,
+        wall_height / 2.0,
+        1.0,
+    ))));
     let wall = shapes.len() - 1;
     let mut bodies = Vec::with_capacity(n + 4);
     for (position, angle) in [
         (DVec3::new(0.0, wall_height / 2.0, half + 1.0), 0.0),
         (DVec3::new(0.0, wall_height / 2.0, -half - 1.0), 0.0),
-        (DVec3::new(half + 1.0, wall_height / 2.0, 0.0), std::f64::consts::FRAC_PI_2),
-        (DVec3::new(-half - 1.0, wall_height / 2.0, 0.0), std::f64::consts::FRAC_PI_2),
+        (
+            DVec3::new(half + 1.0, wall_height / 2.0, 0.0),
+            std::f64::consts::FRAC_PI_2,
+        ),
+        (
+            DVec3::new(-half - 1.0, wall_height / 2.0, 0.0),
+            std::f64::consts::FRAC_PI_2,
+        ),
     ] {
-        bodies.push(new_body(&shapes, wall, 1000.0, true, position, DQuat::from_rotation_y(angle)));
+        bodies.push(new_body(
+            &shapes,
+            wall,
+            1000.0,
+            true,
+            position,
+            DQuat::from_rotation_y(angle),
+        ));
     }
     let mut rng = Rng::new(0x5EED_0002);
     let mut k = 0;
@@ -106,12 +171,24 @@ pub fn pile(n: usize, settings: Settings) -> World {
                 let x = -half + 2.0 + pitch * (i as f64 + 0.5) + rng.range(-0.3, 0.3);
                 let z = -half + 2.0 + pitch * (j as f64 + 0.5) + rng.range(-0.3, 0.3);
                 let y = 5.0 + 6.5 * layer as f64;
-                bodies.push(new_body(&shapes, k % 3, 100.0, false, DVec3::new(x, y, z), rng.tilt(0.5)));
+                bodies.push(new_body(
+                    &shapes,
+                    k % 3,
+                    100.0,
+                    false,
+                    DVec3::new(x, y, z),
+                    rng.tilt(0.5),
+                ));
                 k += 1;
             }
         }
     }
-    let names = vec!["box".into(), "tetrahedron".into(), "octahedron".into(), "wall".into()];
+    let names = vec![
+        "box".into(),
+        "tetrahedron".into(),
+        "octahedron".into(),
+        "wall".into(),
+    ];
     World::new(shapes, names, bodies, Vec::new(), settings)
 }
 
@@ -131,12 +208,30 @@ pub fn chain(n: usize, settings: Settings) -> World {
         let lean = rng.range(-1.0, 1.0);
         for k in 0..10 {
             let position = DVec3::new(x + lean * k as f64, 80.0 - 4.0 * k as f64, z);
-            bodies.push(new_body(&shapes, 0, 500.0, k == 0, position, DQuat::IDENTITY));
+            bodies.push(new_body(
+                &shapes,
+                0,
+                500.0,
+                k == 0,
+                position,
+                DQuat::IDENTITY,
+            ));
             if k > 0 {
                 let (i, j) = (bodies.len() - 2, bodies.len() - 1);
-                let rest_length = (bodies[i].world_point(bottom) - bodies[j].world_point(top)).length();
+                let rest_length =
+                    (bodies[i].world_point(bottom) - bodies[j].world_point(top)).length();
                 for (bound, is_upper) in [(0.9, false), (1.1, true)] {
-                    constraints.push(DistanceConstraint { body1: i, body2: j, vertex1: 0, vertex2: 2, local1: bottom, local2: top, reference: bound * rest_length, is_upper, rest_length });
+                    constraints.push(DistanceConstraint {
+                        body1: i,
+                        body2: j,
+                        vertex1: 0,
+                        vertex2: 2,
+                        local1: bottom,
+                        local2: top,
+                        reference: bound * rest_length,
+                        is_upper,
+                        rest_length,
+                    });
                 }
             }
         }
@@ -158,20 +253,45 @@ pub fn by_name(name: &str, n: usize, settings: Settings) -> Option<World> {
 /// speeds up to `max_speed`, random orientations and spins, spread over a volume above the
 /// ground so that many collide. Deterministic for a seed.
 pub fn random(seed: u64, n: usize, max_speed: f64, settings: Settings) -> World {
-    let shapes: Vec<Shape> = assets::all_meshes().iter().map(|(_, m)| shape_of(m)).collect();
-    let names = assets::all_meshes().iter().map(|(name, _)| name.to_string()).collect();
+    let shapes: Vec<Shape> = assets::all_meshes()
+        .iter()
+        .map(|(_, m)| shape_of(m))
+        .collect();
+    let names = assets::all_meshes()
+        .iter()
+        .map(|(name, _)| name.to_string())
+        .collect();
     let mut rng = Rng::new(seed);
     let extent = 8.0 * (n as f64).cbrt() * 3.0;
     let bodies = (0..n)
         .map(|k| {
             let shape = (rng.next_u64() % shapes.len() as u64) as usize;
             let density = 10f64.powf(rng.range(0.0, 3.0));
-            let position = DVec3::new(rng.range(-extent, extent), rng.range(12.0, 12.0 + 2.0 * extent), rng.range(-extent, extent));
-            let mut b = new_body(&shapes, shape, density, k % 17 == 16, position, rng.tilt(std::f64::consts::PI));
+            let position = DVec3::new(
+                rng.range(-extent, extent),
+                rng.range(12.0, 12.0 + 2.0 * extent),
+                rng.range(-extent, extent),
+            );
+            let mut b = new_body(
+                &shapes,
+                shape,
+                density,
+                k % 17 == 16,
+                position,
+                rng.tilt(std::f64::consts::PI),
+            );
             if !b.fixed {
-                let dir = DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
+                let dir = DVec3::new(
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                );
                 b.linear_velocity = dir.normalize_or_zero() * rng.range(0.0, max_speed);
-                b.angular_velocity = DVec3::new(rng.range(-3.0, 3.0), rng.range(-3.0, 3.0), rng.range(-3.0, 3.0));
+                b.angular_velocity = DVec3::new(
+                    rng.range(-3.0, 3.0),
+                    rng.range(-3.0, 3.0),
+                    rng.range(-3.0, 3.0),
+                );
             }
             b
         })

@@ -8,7 +8,11 @@ use rayon::prelude::*;
 
 /// Advances every movable body by `dt`. Fixed and quarantined bodies are skipped.
 pub fn integrate_bodies(bodies: &mut [RigidBody], settings: &Settings, dt: f64) {
-    bodies.par_iter_mut().with_min_len(256).filter(|b| b.is_dynamic()).for_each(|body| integrate_body(body, settings, dt));
+    bodies
+        .par_iter_mut()
+        .with_min_len(256)
+        .filter(|b| b.is_dynamic())
+        .for_each(|body| integrate_body(body, settings, dt));
 }
 
 pub fn integrate_body(body: &mut RigidBody, settings: &Settings, dt: f64) {
@@ -69,5 +73,9 @@ fn gyroscopic_step(body: &RigidBody, dt: f64) -> DVec3 {
 }
 
 fn skew(v: DVec3) -> DMat3 {
-    DMat3::from_cols(DVec3::new(0.0, v.z, -v.y), DVec3::new(-v.z, 0.0, v.x), DVec3::new(v.y, -v.x, 0.0))
+    DMat3::from_cols(
+        DVec3::new(0.0, v.z, -v.y),
+        DVec3::new(-v.z, 0.0, v.x),
+        DVec3::new(v.y, -v.x, 0.0),
+    )
 }

@@ -67,7 +67,8 @@ fn main() -> ExitCode {
 fn gen_assets(root: &std::path::Path) -> anyhow::Result<()> {
     for (path, text) in tumble::assets::generated_files() {
         let full = root.join(&path);
-        std::fs::write(&full, text).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", full.display()))?;
+        std::fs::write(&full, text)
+            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", full.display()))?;
         println!("wrote {}", full.display());
     }
     Ok(())

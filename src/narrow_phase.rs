@@ -10,28 +10,53 @@ use parry3d_f64::math::Pose;
 /// Contact between the hulls of two bodies at their current poses, if they touch or overlap.
 /// parry's `normal1` points from shape 1 to shape 2, `-dist` is the depth and `point2` lies on
 /// shape 2: exactly the coursework's `contactNormal`, `depth` and `penPosition`.
-pub fn body_contact(body1: &RigidBody, shape1: &Shape, body2: &RigidBody, shape2: &Shape) -> Option<Contact> {
+pub fn body_contact(
+    body1: &RigidBody,
+    shape1: &Shape,
+    body2: &RigidBody,
+    shape2: &Shape,
+) -> Option<Contact> {
     let pose1 = Pose::from_parts(body1.position, body1.orientation);
     let pose2 = Pose::from_parts(body2.position, body2.orientation);
-    let contact = parry3d_f64::query::contact(&pose1, &shape1.hull, &pose2, &shape2.hull, 0.0).ok().flatten()?;
+    let contact = parry3d_f64::query::contact(&pose1, &shape1.hull, &pose2, &shape2.hull, 0.0)
+        .ok()
+        .flatten()?;
     let depth = -contact.dist;
     if !(depth >= 0.0) || !contact.normal1.is_finite() || !contact.point2.is_finite() {
         return None;
     }
-    Some(Contact { depth, normal: contact.normal1, point2: contact.point2 })
+    Some(Contact {
+        depth,
+        normal: contact.normal1,
+        point2: contact.point2,
+    })
 }
 
 /// Like [`body_contact`], but acting at the centroid of the whole contact patch: parry's contact
 /// manifold (feature clipping) gives up to several penetrating points; the depth is the deepest,
 /// the point the centroid of their points on body 2. A box resting on a face is then pushed
 /// through its centre instead of one corner, which is what makes stacks topple.
-pub fn body_contact_patch(body1: &RigidBody, shape1: &Shape, body2: &RigidBody, shape2: &Shape) -> Option<Contact> {
+pub fn body_contact_patch(
+    body1: &RigidBody,
+    shape1: &Shape,
+    body2: &RigidBody,
+    shape2: &Shape,
+) -> Option<Contact> {
     use parry3d_f64::query::{ContactManifold, DefaultQueryDispatcher, PersistentQueryDispatcher};
     let pose1 = Pose::from_parts(body1.position, body1.orientation);
     let pose2 = Pose::from_parts(body2.position, body2.orientation);
     let pose12 = pose1.inv_mul(&pose2);
     let mut manifolds: Vec<ContactManifold<(), ()>> = Vec::new();
-    DefaultQueryDispatcher.contact_manifolds(&pose12, &shape1.hull, &shape2.hull, 0.0, &mut manifolds, &mut None).ok()?;
+    DefaultQueryDispatcher
+        .contact_manifolds(
+            &pose12,
+            &shape1.hull,
+            &shape2.hull,
+            0.0,
+            &mut manifolds,
+            &mut None,
+        )
+        .ok()?;
     let manifold = manifolds.first()?;
     let (mut depth, mut sum, mut count) = (0.0f64, DVec3::ZERO, 0);
     for point in manifold.points.iter().filter(|p| p.dist <= 0.0) {
@@ -43,7 +68,11 @@ pub fn body_contact_patch(body1: &RigidBody, shape1: &Shape, body2: &RigidBody, 
     if count == 0 || !normal.is_finite() || !sum.is_finite() {
         return None;
     }
-    Some(Contact { depth, normal: normal.normalize(), point2: sum / count as f64 })
+    Some(Contact {
+        depth,
+        normal: normal.normalize(),
+        point2: sum / count as f64,
+    })
 }
 
 /// Contact with the ground plane y = 0, whose body is immovable and plays body 2: depth is minus
@@ -65,6 +94,14 @@ pub fn ground_contact(body: &RigidBody, shape: &Shape, patch: bool) -> Option<Co
     if !(lowest.y <= 0.0) {
         return None;
     }
-    let point2 = if patch { below_sum / below_count as f64 } else { lowest };
-    Some(Contact { depth: -lowest.y, normal: DVec3::NEG_Y, point2 })
+    let point2 = if patch {
+        below_sum / below_count as f64
+    } else {
+        lowest
+    };
+    Some(Contact {
+        depth: -lowest.y,
+        normal: DVec3::NEG_Y,
+        point2,
+    })
 }

@@ -102,7 +102,11 @@ impl Settings {
         if !s.time_step.is_finite() || s.time_step < 0.0 {
             s.time_step = 0.0;
         }
-        s.restitution = if s.restitution.is_finite() { s.restitution.clamp(0.0, 1.0) } else { 1.0 };
+        s.restitution = if s.restitution.is_finite() {
+            s.restitution.clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
         if !s.tolerance.is_finite() || s.tolerance < 0.0 {
             s.tolerance = 0.0;
         }

@@ -7,19 +7,42 @@ use std::path::Path;
 use tumble::generate::Rng;
 
 fn corpus(target: &str) -> Vec<(String, Vec<u8>)> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus").join(target);
-    let mut files: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().path()).collect();
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/corpus")
+        .join(target);
+    let mut files: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
     files.sort();
-    files.into_iter().map(|p| (p.display().to_string(), std::fs::read(&p).unwrap())).collect()
+    files
+        .into_iter()
+        .map(|p| (p.display().to_string(), std::fs::read(&p).unwrap()))
+        .collect()
 }
 
 /// Byte-level mutations in the spirit of libFuzzer's: flips, deletions, duplications, and
 /// splices of numbers that stress parsers (huge, negative, non-finite, overflowing).
 fn mutate(input: &[u8], rng: &mut Rng) -> Vec<u8> {
-    const TOKENS: [&str; 10] = [" 4294967296 ", " -1 ", " nan ", " inf ", " 1e308 ", " 0 ", "\n", " 18446744073709551616 ", " 1e-320 ", " End "];
+    const TOKENS: [&str; 10] = [
+        " 4294967296 ",
+        " -1 ",
+        " nan ",
+        " inf ",
+        " 1e308 ",
+        " 0 ",
+        "\n",
+        " 18446744073709551616 ",
+        " 1e-320 ",
+        " End ",
+    ];
     let mut out = input.to_vec();
     for _ in 0..1 + rng.next_u64() % 4 {
-        let at = if out.is_empty() { 0 } else { (rng.next_u64() % out.len() as u64) as usize };
+        let at = if out.is_empty() {
+            0
+        } else {
+            (rng.next_u64() % out.len() as u64) as usize
+        };
         match rng.next_u64() % 5 {
             0 if !out.is_empty() => out[at] ^= 1 << (rng.next_u64() % 8),
             1 if !out.is_empty() => {
@@ -54,7 +77,11 @@ fn every_reader_survives_its_corpus_and_mutations_of_it() {
             for k in 0..300 {
                 let mutated = mutate(bytes, &mut rng);
                 let ok = std::panic::catch_unwind(|| run(&mutated));
-                assert!(ok.is_ok(), "{target}: panic on mutation {k} of {name}: {:?}", String::from_utf8_lossy(&mutated));
+                assert!(
+                    ok.is_ok(),
+                    "{target}: panic on mutation {k} of {name}: {:?}",
+                    String::from_utf8_lossy(&mutated)
+                );
             }
         }
     }

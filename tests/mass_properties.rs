@@ -12,7 +12,12 @@ fn unit_cube_has_closed_form_mass_properties() {
     assert_close(s.volume, 1.0, 1e-14, "volume");
     // Solid cube of side a, mass m: I = m a^2 / 6 about every axis through the centre.
     for k in 0..3 {
-        assert_close(s.unit_inertia.col(k)[k], 1.0 / 6.0, 1e-14, "principal moment");
+        assert_close(
+            s.unit_inertia.col(k)[k],
+            1.0 / 6.0,
+            1e-14,
+            "principal moment",
+        );
         for l in 0..3 {
             if k != l {
                 assert!(s.unit_inertia.col(k)[l].abs() < 1e-15, "product of inertia");
@@ -34,7 +39,12 @@ fn regular_tetrahedron_has_closed_form_mass_properties() {
     // Regular tetrahedron: isotropic inertia m a^2 / 20.
     let expected = volume * a * a / 20.0;
     for k in 0..3 {
-        assert_close(s.unit_inertia.col(k)[k], expected, 1e-12, "principal moment");
+        assert_close(
+            s.unit_inertia.col(k)[k],
+            expected,
+            1e-12,
+            "principal moment",
+        );
     }
     // The rest vertices are re-centred on the centre of mass.
     let mean: DVec3 = s.rest_vertices.iter().copied().sum::<DVec3>() / 4.0;
@@ -75,7 +85,18 @@ fn surface_mass_properties(vertices: &[DVec3], triangles: &[[u32; 3]]) -> (f64, 
         integral[8] += d.y * (p0.z * g0y + p1.z * g1y + p2.z * g2y);
         integral[9] += d.z * (p0.x * g0z + p1.x * g1z + p2.x * g2z);
     }
-    let mult = [1.0 / 6.0, 1.0 / 24.0, 1.0 / 24.0, 1.0 / 24.0, 1.0 / 60.0, 1.0 / 60.0, 1.0 / 60.0, 1.0 / 120.0, 1.0 / 120.0, 1.0 / 120.0];
+    let mult = [
+        1.0 / 6.0,
+        1.0 / 24.0,
+        1.0 / 24.0,
+        1.0 / 24.0,
+        1.0 / 60.0,
+        1.0 / 60.0,
+        1.0 / 60.0,
+        1.0 / 120.0,
+        1.0 / 120.0,
+        1.0 / 120.0,
+    ];
     for k in 0..10 {
         integral[k] *= mult[k];
     }
@@ -87,7 +108,11 @@ fn surface_mass_properties(vertices: &[DVec3], triangles: &[[u32; 3]]) -> (f64, 
     let ixy = -(integral[7] - mass * c.x * c.y);
     let iyz = -(integral[8] - mass * c.y * c.z);
     let ixz = -(integral[9] - mass * c.z * c.x);
-    let inertia = DMat3::from_cols(DVec3::new(ixx, ixy, ixz), DVec3::new(ixy, iyy, iyz), DVec3::new(ixz, iyz, izz));
+    let inertia = DMat3::from_cols(
+        DVec3::new(ixx, ixy, ixz),
+        DVec3::new(ixy, iyy, iyz),
+        DVec3::new(ixz, iyz, izz),
+    );
     (mass, c, inertia)
 }
 
@@ -101,7 +126,10 @@ fn coursework_ellipsoid_inertia_matches_surface_integral() {
     // The shape's triangles are in body space (centre of mass at the origin).
     let (volume, center, inertia) = surface_mass_properties(&s.rest_vertices, &s.triangles);
     assert_close(s.volume, volume, 1e-10, "volume");
-    assert!(center.length() < 1e-9 * s.volume.cbrt(), "centre of mass {center}");
+    assert!(
+        center.length() < 1e-9 * s.volume.cbrt(),
+        "centre of mass {center}"
+    );
     for k in 0..3 {
         for l in 0..3 {
             let scale = inertia.col(k)[k].abs();

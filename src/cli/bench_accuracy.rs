@@ -35,14 +35,62 @@ pub fn combinations() -> Vec<(&'static str, Settings)> {
     let d = Settings::default();
     vec![
         ("coursework", d.clone()),
-        ("gyroscopic", Settings { rotation_integrator: RotationIntegrator::Gyroscopic, ..d.clone() }),
-        ("angular_momentum", Settings { rotation_integrator: RotationIntegrator::AngularMomentum, ..d.clone() }),
-        ("skip_separating", Settings { skip_separating_contacts: true, ..d.clone() }),
-        ("restitution_threshold", Settings { restitution_threshold: 0.5, ..d.clone() }),
-        ("contact_patches", Settings { contact_patches: true, ..d.clone() }),
-        ("substeps_4", Settings { substeps: 4, ..d.clone() }),
-        ("iterations_100", Settings { max_iterations: 100, ..d.clone() }),
-        ("sparse_schedule", Settings { constraint_schedule: ConstraintSchedule::Sparse, ..d.clone() }),
+        (
+            "gyroscopic",
+            Settings {
+                rotation_integrator: RotationIntegrator::Gyroscopic,
+                ..d.clone()
+            },
+        ),
+        (
+            "angular_momentum",
+            Settings {
+                rotation_integrator: RotationIntegrator::AngularMomentum,
+                ..d.clone()
+            },
+        ),
+        (
+            "skip_separating",
+            Settings {
+                skip_separating_contacts: true,
+                ..d.clone()
+            },
+        ),
+        (
+            "restitution_threshold",
+            Settings {
+                restitution_threshold: 0.5,
+                ..d.clone()
+            },
+        ),
+        (
+            "contact_patches",
+            Settings {
+                contact_patches: true,
+                ..d.clone()
+            },
+        ),
+        (
+            "substeps_4",
+            Settings {
+                substeps: 4,
+                ..d.clone()
+            },
+        ),
+        (
+            "iterations_100",
+            Settings {
+                max_iterations: 100,
+                ..d.clone()
+            },
+        ),
+        (
+            "sparse_schedule",
+            Settings {
+                constraint_schedule: ConstraintSchedule::Sparse,
+                ..d.clone()
+            },
+        ),
         ("accurate", Settings::accurate()),
     ]
 }
@@ -55,24 +103,50 @@ struct Row {
 }
 
 pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
-    let scenarios: Vec<Scenario> = if args.scenarios.is_empty() { Scenario::ALL.to_vec() } else { args.scenarios.clone() };
+    let scenarios: Vec<Scenario> = if args.scenarios.is_empty() {
+        Scenario::ALL.to_vec()
+    } else {
+        args.scenarios.clone()
+    };
     let mut dts = args.dts.clone();
     let mut combos = combinations();
     if args.quick {
         dts = vec![0.04, 0.01];
-        combos.retain(|(name, _)| matches!(*name, "coursework" | "gyroscopic" | "restitution_threshold" | "accurate"));
+        combos.retain(|(name, _)| {
+            matches!(
+                *name,
+                "coursework" | "gyroscopic" | "restitution_threshold" | "accurate"
+            )
+        });
     }
-    anyhow::ensure!(dts.iter().all(|dt| dt.is_finite() && *dt > 0.0), "time steps must be positive");
+    anyhow::ensure!(
+        dts.iter().all(|dt| dt.is_finite() && *dt > 0.0),
+        "time steps must be positive"
+    );
     // Restitution of the bounce scenario: three runs per combination.
     let restitutions = [1.0, 0.8, 0.5];
-    let total = scenarios.iter().map(|s| if *s == Scenario::Bounce { restitutions.len() } else { 1 }).sum::<usize>() * combos.len() * dts.len();
+    let total = scenarios
+        .iter()
+        .map(|s| {
+            if *s == Scenario::Bounce {
+                restitutions.len()
+            } else {
+                1
+            }
+        })
+        .sum::<usize>()
+        * combos.len()
+        * dts.len();
     let bar = progress_bar(total as u64, "bench accuracy");
     // scenario -> combination -> dt -> row
     let mut results: BTreeMap<String, BTreeMap<String, BTreeMap<String, Row>>> = BTreeMap::new();
     let mut csv = String::from("scenario,combination,dt,wall_per_sim_second,metric,value\n");
     for &scenario in &scenarios {
         let variants: Vec<(String, Option<f64>)> = if scenario == Scenario::Bounce {
-            restitutions.iter().map(|e| (format!("bounce_e{e}"), Some(*e))).collect()
+            restitutions
+                .iter()
+                .map(|e| (format!("bounce_e{e}"), Some(*e)))
+                .collect()
         } else {
             vec![(scenario.name().to_string(), None)]
         };
@@ -80,16 +154,31 @@ pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
             for (combo, base) in &combos {
                 for &dt in &dts {
                     bar.set_message(format!("{scenario_name} {combo} dt={dt}"));
-                    let mut settings = Settings { time_step: dt, ..base.clone() };
+                    let mut settings = Settings {
+                        time_step: dt,
+                        ..base.clone()
+                    };
                     if let Some(e) = restitution {
                         settings.restitution = *e;
                     }
                     let outcome = accuracy::run(scenario, &settings);
                     for (name, value) in &outcome.metrics {
-                        csv.push_str(&format!("{scenario_name},{combo},{dt},{:.6e},{name},{value:.6e}\n", outcome.wall_per_sim_second));
+                        csv.push_str(&format!(
+                            "{scenario_name},{combo},{dt},{:.6e},{name},{value:.6e}\n",
+                            outcome.wall_per_sim_second
+                        ));
                     }
-                    let row = Row { wall_per_sim_second: outcome.wall_per_sim_second, metrics: outcome.metrics.iter().cloned().collect(), finite: outcome.finite };
-                    results.entry(scenario_name.clone()).or_default().entry(combo.to_string()).or_default().insert(format!("{dt}"), row);
+                    let row = Row {
+                        wall_per_sim_second: outcome.wall_per_sim_second,
+                        metrics: outcome.metrics.iter().cloned().collect(),
+                        finite: outcome.finite,
+                    };
+                    results
+                        .entry(scenario_name.clone())
+                        .or_default()
+                        .entry(combo.to_string())
+                        .or_default()
+                        .insert(format!("{dt}"), row);
                     bar.inc(1);
                 }
             }
@@ -102,19 +191,40 @@ pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
     std::fs::write(&csv_path, csv)?;
     let mut plots = Vec::new();
     for (scenario_name, by_combo) in &results {
-        let scenario = scenarios.iter().copied().find(|s| scenario_name.starts_with(s.name())).unwrap_or(Scenario::FreeFall);
+        let scenario = scenarios
+            .iter()
+            .copied()
+            .find(|s| scenario_name.starts_with(s.name()))
+            .unwrap_or(Scenario::FreeFall);
         let metric = scenario.primary_metric();
         let mut series = Vec::new();
         let mut all_points = Vec::new();
         for (combo, by_dt) in by_combo {
-            let mut points: Vec<(f64, f64)> = by_dt.values().filter_map(|r| Some((r.wall_per_sim_second, *r.metrics.get(metric)?))).collect();
+            let mut points: Vec<(f64, f64)> = by_dt
+                .values()
+                .filter_map(|r| Some((r.wall_per_sim_second, *r.metrics.get(metric)?)))
+                .collect();
             points.sort_by(|a, b| a.0.total_cmp(&b.0));
             all_points.extend(points.iter().copied());
-            series.push(Series { name: combo.clone(), points, pareto: false });
+            series.push(Series {
+                name: combo.clone(),
+                points,
+                pareto: false,
+            });
         }
-        series.push(Series { name: "Pareto front".into(), points: pareto_front(&all_points), pareto: true });
+        series.push(Series {
+            name: "Pareto front".into(),
+            points: pareto_front(&all_points),
+            pareto: true,
+        });
         let path = args.out.join(format!("accuracy-{scenario_name}.svg"));
-        log_log_plot(&path, &format!("{scenario_name}: {metric} against run time"), "wall seconds per simulated second", metric, &series)?;
+        log_log_plot(
+            &path,
+            &format!("{scenario_name}: {metric} against run time"),
+            "wall seconds per simulated second",
+            metric,
+            &series,
+        )?;
         plots.push(path);
     }
 
@@ -123,7 +233,11 @@ pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     for (scenario_name, by_combo) in &results {
-        let scenario = scenarios.iter().copied().find(|s| scenario_name.starts_with(s.name())).unwrap_or(Scenario::FreeFall);
+        let scenario = scenarios
+            .iter()
+            .copied()
+            .find(|s| scenario_name.starts_with(s.name()))
+            .unwrap_or(Scenario::FreeFall);
         let metric = scenario.primary_metric();
         println!("\n{scenario_name} ({metric}; wall ms per simulated second in brackets)");
         print!("{:<24}", "combination \\ dt");
@@ -135,20 +249,36 @@ pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
             print!("{combo:<24}");
             for dt in &dts {
                 match by_dt.get(&format!("{dt}")) {
-                    Some(r) => print!("{:>22}", format!("{:.3e} [{:.2}]", r.metrics.get(metric).copied().unwrap_or(f64::NAN), 1000.0 * r.wall_per_sim_second)),
+                    Some(r) => print!(
+                        "{:>22}",
+                        format!(
+                            "{:.3e} [{:.2}]",
+                            r.metrics.get(metric).copied().unwrap_or(f64::NAN),
+                            1000.0 * r.wall_per_sim_second
+                        )
+                    ),
                     None => print!("{:>22}", "-"),
                 }
             }
             println!();
         }
     }
-    println!("\nwrote {} and {} plots in {}", csv_path.display(), plots.len(), args.out.display());
+    println!(
+        "\nwrote {} and {} plots in {}",
+        csv_path.display(),
+        plots.len(),
+        args.out.display()
+    );
     Ok(())
 }
 
 /// Points not dominated in (time, error): nothing else is both faster and more accurate.
 fn pareto_front(points: &[(f64, f64)]) -> Vec<(f64, f64)> {
-    let mut sorted: Vec<(f64, f64)> = points.iter().copied().filter(|(x, y)| x.is_finite() && y.is_finite()).collect();
+    let mut sorted: Vec<(f64, f64)> = points
+        .iter()
+        .copied()
+        .filter(|(x, y)| x.is_finite() && y.is_finite())
+        .collect();
     sorted.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
     let mut front = Vec::new();
     let mut best = f64::INFINITY;

@@ -72,7 +72,12 @@ struct Measurement {
     steps_measured: usize,
 }
 
-fn measure(scene: &str, n: usize, variant: Variant, args: &ScaleArgs) -> anyhow::Result<Measurement> {
+fn measure(
+    scene: &str,
+    n: usize,
+    variant: Variant,
+    args: &ScaleArgs,
+) -> anyhow::Result<Measurement> {
     let mut settings = Settings::default();
     if variant == Variant::Coursework {
         settings.broad_phase = BroadPhase::AllPairs;
@@ -84,10 +89,14 @@ fn measure(scene: &str, n: usize, variant: Variant, args: &ScaleArgs) -> anyhow:
         Variant::SingleThread => 1,
         _ => rayon::current_num_threads().max(1),
     };
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()?;
     pool.install(|| {
         let baseline = alloc::reset_peak();
-        let mut world = tumble::generate::by_name(scene, n, settings).ok_or_else(|| anyhow::anyhow!("unknown generated scene '{scene}' (sparse, pile, chain)"))?;
+        let mut world = tumble::generate::by_name(scene, n, settings).ok_or_else(|| {
+            anyhow::anyhow!("unknown generated scene '{scene}' (sparse, pile, chain)")
+        })?;
         let mut vertices_sink = 0.0;
         let mut step = |world: &mut tumble::World| {
             let start = Instant::now();
@@ -171,7 +180,11 @@ pub fn run(args: &ScaleArgs) -> anyhow::Result<()> {
             sizes.push(100_000);
         }
         for &n in &sizes {
-            for v in [Variant::Coursework, Variant::SingleThread, Variant::AllCores] {
+            for v in [
+                Variant::Coursework,
+                Variant::SingleThread,
+                Variant::AllCores,
+            ] {
                 jobs.push((scene.clone(), n, v));
             }
         }
@@ -181,7 +194,10 @@ pub fn run(args: &ScaleArgs) -> anyhow::Result<()> {
     for (scene, n, v) in &jobs {
         bar.set_message(format!("{scene}-{n} {}", v.name()));
         let m = measure(scene, *n, *v, args)?;
-        results.entry(format!("{scene}-{n}")).or_default().insert(v.name().into(), m);
+        results
+            .entry(format!("{scene}-{n}"))
+            .or_default()
+            .insert(v.name().into(), m);
         bar.inc(1);
     }
     bar.finish_and_clear();
@@ -192,13 +208,18 @@ pub fn run(args: &ScaleArgs) -> anyhow::Result<()> {
         let entry = speedups.entry(key.clone()).or_default();
         for v in ["tumble_1_thread", "tumble_all_cores"] {
             if let Some(m) = by_variant.get(v) {
-                entry.insert(format!("coursework_over_{v}"), base / m.median_ms_per_step.max(1e-9));
+                entry.insert(
+                    format!("coursework_over_{v}"),
+                    base / m.median_ms_per_step.max(1e-9),
+                );
             }
         }
     }
 
     std::fs::create_dir_all(&args.out)?;
-    let mut csv = String::from("scene,n,variant,median_ms_per_step,integrate_ms,broad_phase_ms,narrow_phase_ms,contact_resolution_ms,ground_ms,constraints_ms,pose_update_ms,visits_per_step,contacts_per_step,peak_mib,steps_measured\n");
+    let mut csv = String::from(
+        "scene,n,variant,median_ms_per_step,integrate_ms,broad_phase_ms,narrow_phase_ms,contact_resolution_ms,ground_ms,constraints_ms,pose_update_ms,visits_per_step,contacts_per_step,peak_mib,steps_measured\n",
+    );
     for (key, by_variant) in &results {
         let (scene, n) = key.rsplit_once('-').unwrap_or((key, ""));
         for (v, m) in by_variant {
@@ -230,23 +251,54 @@ pub fn run(args: &ScaleArgs) -> anyhow::Result<()> {
                 .iter()
                 .filter_map(|(key, by)| {
                     let (s, n) = key.rsplit_once('-')?;
-                    (s == scene).then(|| by.get(v).map(|m| (n.parse::<f64>().ok().unwrap_or(0.0), m.median_ms_per_step)))?
+                    (s == scene).then(|| {
+                        by.get(v)
+                            .map(|m| (n.parse::<f64>().ok().unwrap_or(0.0), m.median_ms_per_step))
+                    })?
                 })
                 .collect();
             points.sort_by(|a, b| a.0.total_cmp(&b.0));
-            series.push(Series { name: v.to_string(), points, pareto: false });
+            series.push(Series {
+                name: v.to_string(),
+                points,
+                pareto: false,
+            });
         }
         let path = args.out.join(format!("scale-{scene}.svg"));
-        log_log_plot(&path, &format!("{scene}-N: ms per step"), "bodies N", "ms/step (median)", &series)?;
+        log_log_plot(
+            &path,
+            &format!("{scene}-N: ms per step"),
+            "bodies N",
+            "ms/step (median)",
+            &series,
+        )?;
         plots.push(path);
     }
 
-    let report = Report { cores: rayon::current_num_threads(), steps: args.steps, rapier: rapier_note(), results, speedups };
+    let report = Report {
+        cores: rayon::current_num_threads(),
+        steps: args.steps,
+        rapier: rapier_note(),
+        results,
+        speedups,
+    };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
-    println!("{:<14} {:<18} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}", "scene", "variant", "ms/step", "broad", "narrow", "resolve", "constr", "integr", "visits", "peakMiB");
+    println!(
+        "{:<14} {:<18} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}",
+        "scene",
+        "variant",
+        "ms/step",
+        "broad",
+        "narrow",
+        "resolve",
+        "constr",
+        "integr",
+        "visits",
+        "peakMiB"
+    );
     for (key, by_variant) in &report.results {
         for (v, m) in by_variant {
             let s = |k: &str| m.mean_stage_ms.get(k).copied().unwrap_or(0.0);
@@ -268,7 +320,15 @@ pub fn run(args: &ScaleArgs) -> anyhow::Result<()> {
         }
     }
     println!("\n{}", report.rapier);
-    println!("wrote {} and {}", csv_path.display(), plots.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "));
+    println!(
+        "wrote {} and {}",
+        csv_path.display(),
+        plots
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
     Ok(())
 }
 
