@@ -22,7 +22,8 @@ pub fn body_contact(
         .ok()
         .flatten()?;
     let depth = -contact.dist;
-    if !(depth >= 0.0) || !contact.normal1.is_finite() || !contact.point2.is_finite() {
+    if depth.is_nan() || depth < 0.0 || !contact.normal1.is_finite() || !contact.point2.is_finite()
+    {
         return None;
     }
     Some(Contact {
@@ -91,7 +92,7 @@ pub fn ground_contact(body: &RigidBody, shape: &Shape, patch: bool) -> Option<Co
             below_count += 1;
         }
     }
-    if !(lowest.y <= 0.0) {
+    if lowest.y.is_nan() || lowest.y > 0.0 {
         return None;
     }
     let point2 = if patch {

@@ -274,11 +274,10 @@ fn load_with(
             record.position,
             record.orientation,
         );
-        if !body.fixed
-            && !(body.inverse_mass.is_finite()
-                && body.inverse_inertia.is_finite()
-                && body.inverse_mass > 0.0)
-        {
+        let invertible = body.inverse_mass.is_finite()
+            && body.inverse_inertia.is_finite()
+            && body.inverse_mass > 0.0;
+        if !body.fixed && !invertible {
             return Err(LoadError::new(
                 path,
                 Some(record.line),

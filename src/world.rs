@@ -164,7 +164,7 @@ impl World {
 
     fn collides(&self, i: usize, j: usize) -> bool {
         let (a, b) = (&self.bodies[i], &self.bodies[j]);
-        !(a.fixed && b.fixed) && !a.quarantined && !b.quarantined
+        !(a.quarantined || b.quarantined || a.fixed && b.fixed)
     }
 
     fn contact_between(&self, i: usize, j: usize) -> Option<Contact> {
@@ -427,21 +427,23 @@ impl World {
         let mut out = Vec::new();
         for i in 0..self.bodies.len() {
             for j in i + 1..self.bodies.len() {
-                if self.collides(i, j) && aabbs[i].overlaps(&aabbs[j]) {
-                    if let Some(c) = self.contact_between(i, j) {
-                        out.push((i, Some(j), c));
-                    }
+                if self.collides(i, j)
+                    && aabbs[i].overlaps(&aabbs[j])
+                    && let Some(c) = self.contact_between(i, j)
+                {
+                    out.push((i, Some(j), c));
                 }
             }
             let body = &self.bodies[i];
-            if body.is_dynamic() && aabbs[i].min.y <= 0.0 {
-                if let Some(c) = ground_contact(
+            if body.is_dynamic()
+                && aabbs[i].min.y <= 0.0
+                && let Some(c) = ground_contact(
                     body,
                     &self.shapes[body.shape],
                     self.settings.contact_patches,
-                ) {
-                    out.push((i, None, c));
-                }
+                )
+            {
+                out.push((i, None, c));
             }
         }
         out

@@ -82,7 +82,7 @@ fn fan_tetrahedralise(
         volume += v;
         moment += v * (a + b + c) / 4.0;
     }
-    if !(volume.abs() > 0.0) || !volume.is_finite() {
+    if volume == 0.0 || !volume.is_finite() {
         return Err(LoadError::new(
             file,
             None,

@@ -50,7 +50,7 @@ pub fn parse_scene(file: &Path, text: &str) -> Result<Vec<SceneRecord>, LoadErro
         let (qz, _) = tokens.real("the quaternion z")?;
         let q = DQuat::from_xyzw(qx, qy, qz, qw);
         let norm = q.length();
-        if !(norm > 1e-12) || !norm.is_finite() {
+        if norm.is_nan() || norm <= 1e-12 || !norm.is_finite() {
             return Err(tokens.error(
                 q_line,
                 "the orientation quaternion is zero and cannot be normalised",
