@@ -50,6 +50,8 @@ enum Variant {
     Coursework,
     SingleThread,
     AllCores,
+    /// Rapier on the same scene (with `--features compare-rapier`).
+    Rapier,
 }
 
 impl Variant {
@@ -58,6 +60,7 @@ impl Variant {
             Variant::Coursework => "coursework",
             Variant::SingleThread => "tumble_1_thread",
             Variant::AllCores => "tumble_all_cores",
+            Variant::Rapier => "rapier",
         }
     }
 }
@@ -92,6 +95,9 @@ fn measure(
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()?;
+    if variant == Variant::Rapier {
+        return measure_rapier(scene, n, settings, args);
+    }
     pool.install(|| {
         let baseline = alloc::reset_peak();
         let mut world = tumble::generate::by_name(scene, n, settings).ok_or_else(|| {
@@ -154,6 +160,53 @@ fn measure(
     })
 }
 
+#[cfg(feature = "compare-rapier")]
+fn measure_rapier(
+    scene: &str,
+    n: usize,
+    settings: Settings,
+    args: &ScaleArgs,
+) -> anyhow::Result<Measurement> {
+    let baseline = alloc::reset_peak();
+    let world = tumble::generate::by_name(scene, n, settings)
+        .ok_or_else(|| anyhow::anyhow!("unknown generated scene '{scene}'"))?;
+    let mut rapier = super::rapier::RapierScene::from_world(&world);
+    drop(world);
+    let started = Instant::now();
+    for _ in 0..args.warmup {
+        rapier.step();
+        if started.elapsed().as_secs_f64() > args.max_seconds / 4.0 {
+            break;
+        }
+    }
+    let mut times = Vec::with_capacity(args.steps);
+    let started = Instant::now();
+    for _ in 0..args.steps {
+        times.push(rapier.step());
+        if started.elapsed().as_secs_f64() > args.max_seconds {
+            break;
+        }
+    }
+    let total: f64 = times.iter().sum();
+    let measured = times.len().max(1);
+    times.sort_by(f64::total_cmp);
+    let mut stages = BTreeMap::new();
+    stages.insert("total".to_string(), 1000.0 * total / measured as f64);
+    Ok(Measurement {
+        median_ms_per_step: 1000.0 * times[times.len() / 2],
+        mean_stage_ms: stages,
+        constraint_visits_per_step: 0.0,
+        contacts_per_step: 0.0,
+        peak_mib: (alloc::peak().saturating_sub(baseline)) as f64 / (1024.0 * 1024.0),
+        steps_measured: times.len(),
+    })
+}
+
+#[cfg(not(feature = "compare-rapier"))]
+fn measure_rapier(_: &str, _: usize, _: Settings, _: &ScaleArgs) -> anyhow::Result<Measurement> {
+    anyhow::bail!("built without Rapier")
+}
+
 #[derive(Serialize)]
 struct Report {
     cores: usize,
@@ -184,8 +237,11 @@ pub fn run(args: &ScaleArgs) -> anyhow::Result<()> {
                 Variant::Coursework,
                 Variant::SingleThread,
                 Variant::AllCores,
+                Variant::Rapier,
             ] {
-                jobs.push((scene.clone(), n, v));
+                if v != Variant::Rapier || cfg!(feature = "compare-rapier") {
+                    jobs.push((scene.clone(), n, v));
+                }
             }
         }
     }
@@ -206,13 +262,19 @@ pub fn run(args: &ScaleArgs) -> anyhow::Result<()> {
     for (key, by_variant) in &results {
         let base = by_variant["coursework"].median_ms_per_step;
         let entry = speedups.entry(key.clone()).or_default();
-        for v in ["tumble_1_thread", "tumble_all_cores"] {
+        for v in ["tumble_1_thread", "tumble_all_cores", "rapier"] {
             if let Some(m) = by_variant.get(v) {
                 entry.insert(
                     format!("coursework_over_{v}"),
                     base / m.median_ms_per_step.max(1e-9),
                 );
             }
+        }
+        if let (Some(r), Some(t)) = (by_variant.get("rapier"), by_variant.get("tumble_1_thread")) {
+            entry.insert(
+                "rapier_over_tumble_1_thread".into(),
+                r.median_ms_per_step / t.median_ms_per_step.max(1e-9),
+            );
         }
     }
 
@@ -246,7 +308,12 @@ pub fn run(args: &ScaleArgs) -> anyhow::Result<()> {
     let mut plots = Vec::new();
     for scene in &args.scenes {
         let mut series = Vec::new();
-        for v in ["coursework", "tumble_1_thread", "tumble_all_cores"] {
+        for v in [
+            "coursework",
+            "tumble_1_thread",
+            "tumble_all_cores",
+            "rapier",
+        ] {
             let mut points: Vec<(f64, f64)> = results
                 .iter()
                 .filter_map(|(key, by)| {
@@ -347,5 +414,9 @@ fn clone_args(a: &ScaleArgs) -> ScaleArgs {
 }
 
 fn rapier_note() -> &'static str {
-    "Rapier comparison: not built in; rebuild with `cargo run --release --features compare-rapier -- bench scale` (not yet implemented in this version)"
+    if cfg!(feature = "compare-rapier") {
+        "Rapier 0.36 (rapier3d-f64, single-threaded build): same hulls, densities, dt, gravity and restitution; friction 0; sleeping off; chain links as rope joints at the upper bound."
+    } else {
+        "Rapier comparison not built in: run `cargo run --release --features compare-rapier -- bench scale` to add it."
+    }
 }

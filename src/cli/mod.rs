@@ -4,6 +4,8 @@ pub mod alloc;
 pub mod bench_accuracy;
 pub mod bench_scale;
 pub mod plot;
+#[cfg(feature = "compare-rapier")]
+pub mod rapier;
 pub mod run;
 
 use clap::Args;
