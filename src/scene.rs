@@ -201,6 +201,9 @@ pub fn load(
     if path.exists() {
         return load_file(path, constraints, settings);
     }
+    if let Some(world) = generated(scene, &settings) {
+        return Ok(world);
+    }
     match BUILTIN_SCENES.iter().find(|(name, _)| *name == scene) {
         Some((_, file)) => load_with(
             &Embedded,
@@ -214,12 +217,19 @@ pub fn load(
                 path,
                 None,
                 format!(
-                    "no such file, and not a built-in scene (built-in: {})",
+                    "no such file, and not a built-in scene (built-in: {}; generated: sparse-N, pile-N, chain-N)",
                     names.join(", ")
                 ),
             ))
         }
     }
+}
+
+/// `sparse-N`, `pile-N` or `chain-N` (N at most 1,000,000): a generated scene.
+fn generated(name: &str, settings: &Settings) -> Option<World> {
+    let (kind, n) = name.rsplit_once('-')?;
+    let n: usize = n.parse().ok().filter(|n| (1..=1_000_000).contains(n))?;
+    crate::generate::by_name(kind, n, settings.clone())
 }
 
 /// Loads a scene file from disk; mesh paths are relative to its folder.
