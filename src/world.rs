@@ -42,6 +42,11 @@ pub struct World {
     constraints_by_body: Vec<Vec<u32>>,
     grid: Grid,
     aabbs: Vec<Aabb>,
+    /// Fattened boxes the grid holds during the contact stage (each contains its body's box).
+    proxies: Vec<Aabb>,
+    /// Share of candidate pairs the last contact stage computed sequentially (because a body had
+    /// moved): when high, the parallel precomputation is not worth it.
+    recomputed_fraction: f64,
     /// Last state known finite, restored when a body is quarantined.
     last_good: Vec<(DVec3, DQuat)>,
     initial_bodies: Vec<RigidBody>,
@@ -58,6 +63,10 @@ fn ground_body() -> RigidBody {
         DVec3::ZERO,
         DQuat::IDENTITY,
     )
+}
+
+fn contains(outer: &Aabb, inner: &Aabb) -> bool {
+    outer.min.cmple(inner.min).all() && inner.max.cmple(outer.max).all()
 }
 
 fn timed<T>(slot: &mut f64, f: impl FnOnce() -> T) -> T {
@@ -99,6 +108,8 @@ impl World {
             constraints_by_body,
             grid: Grid::new(cell),
             aabbs: Vec::new(),
+            proxies: Vec::new(),
+            recomputed_fraction: 0.0,
             last_good,
         }
     }
@@ -273,31 +284,52 @@ impl World {
             return;
         }
 
-        // Broad phase: candidate pairs from the grid.
+        // Broad phase: candidate pairs of proxy boxes (body boxes fattened by a margin) from the
+        // grid. While a body's box stays inside its proxy, every pair it can newly overlap is
+        // already a candidate; only a body that escapes its proxy is looked up again.
         let start = Instant::now();
         let active: Vec<bool> = self.bodies.iter().map(|b| !b.quarantined).collect();
-        self.grid.rebuild(&self.aabbs, &active);
+        let proxies: Vec<Aabb> = (0..n).map(|i| self.proxy_of(i)).collect();
+        self.proxies = proxies;
+        self.grid.rebuild(&self.proxies, &active);
         let candidates = {
             let this = &*self;
-            this.grid.overlapping_pairs(
-                &this.aabbs,
-                |i, j| this.collides(i, j),
-                &mut stats.pairs_tested,
-            )
+            // Fixedness and quarantine cannot change during the stage; sleep can, so it is
+            // checked when a pair is processed.
+            let static_pair = |i: usize, j: usize| {
+                let (a, b) = (&this.bodies[i], &this.bodies[j]);
+                !(a.quarantined || b.quarantined || a.fixed && b.fixed)
+            };
+            this.grid
+                .overlapping_pairs(&this.proxies, static_pair, &mut stats.pairs_tested)
         };
         stats.timings.broad_phase += start.elapsed().as_secs_f64();
 
-        // Narrow phase on all candidates at the poses after integration, in parallel.
+        // Narrow phase, in parallel, on the candidates whose boxes overlap after integration.
+        // Skipped (each pair computed when it is reached) on one thread, or when most pairs had
+        // to be computed again last step anyway: results are the same either way.
         let start = Instant::now();
-        let precomputed: Vec<Option<Contact>> = {
+        let eager = rayon::current_num_threads() > 1 && self.recomputed_fraction < 0.5;
+        let precomputed: Vec<Option<Contact>> = if eager {
             let this = &*self;
             candidates
                 .par_iter()
                 .with_min_len(16)
-                .map(|&(i, j)| this.contact_between(i as usize, j as usize))
+                .map(|&(i, j)| {
+                    let (i, j) = (i as usize, j as usize);
+                    let overlap = this.aabbs[i].overlaps(&this.aabbs[j]) && this.collides(i, j);
+                    if overlap {
+                        this.contact_between(i, j)
+                    } else {
+                        None
+                    }
+                })
                 .collect()
+        } else {
+            Vec::new()
         };
-        stats.narrow_phase_queries += candidates.len();
+        let queries_before = stats.narrow_phase_queries;
+        stats.narrow_phase_queries += precomputed.len();
         stats.timings.narrow_phase += start.elapsed().as_secs_f64();
 
         // Sequential resolution in pair order; pairs touching a moved body are re-tested.
@@ -332,9 +364,9 @@ impl World {
             last = Some(pair);
             let (i, j) = (pair.0 as usize, pair.1 as usize);
             let contact = match precomputed_index {
-                Some(k) if !moved[i] && !moved[j] => precomputed[k],
+                Some(k) if eager && !moved[i] && !moved[j] => precomputed[k],
                 _ => {
-                    if !self.aabbs[i].overlaps(&self.aabbs[j]) {
+                    if !self.aabbs[i].overlaps(&self.aabbs[j]) || !self.collides(i, j) {
                         continue;
                     }
                     let t = Instant::now();
@@ -345,22 +377,29 @@ impl World {
                 }
             };
             let Some(contact) = contact else { continue };
+            let woke = [i, j].map(|b| self.bodies[b].asleep);
             self.apply_contact(i, j, &contact, params, stats);
-            for b in [i, j] {
+            for (k, b) in [i, j].into_iter().enumerate() {
                 if !self.bodies[b].is_dynamic() {
                     continue;
                 }
                 moved[b] = true;
                 self.refresh_aabb(b);
-                self.grid.update(b, &self.aabbs[b]);
-                self.grid.query(b, &self.aabbs, &mut neighbours);
-                for &k in &neighbours {
-                    let later = if (b as u32) < k {
-                        (b as u32, k)
+                // A body that woke may now collide with sleeping neighbours that were no
+                // candidates' concern before: look it up as if it had escaped.
+                if contains(&self.proxies[b], &self.aabbs[b]) && !woke[k] {
+                    continue;
+                }
+                self.proxies[b] = self.proxy_of(b);
+                self.grid.update(b, &self.proxies[b]);
+                self.grid.query(b, &self.proxies, &mut neighbours);
+                for &other in &neighbours {
+                    let later = if (b as u32) < other {
+                        (b as u32, other)
                     } else {
-                        (k, b as u32)
+                        (other, b as u32)
                     };
-                    if later > pair && self.collides(later.0 as usize, later.1 as usize) {
+                    if later > pair {
                         extra.push(Reverse(later));
                     }
                 }
@@ -368,6 +407,20 @@ impl World {
         }
         stats.timings.narrow_phase += narrow_again;
         stats.timings.contact_resolution += start.elapsed().as_secs_f64() - narrow_again;
+        let recomputed = stats.narrow_phase_queries - queries_before - precomputed.len();
+        self.recomputed_fraction = recomputed as f64 / candidates.len().max(1) as f64;
+    }
+
+    /// The body's box fattened by a tenth of its size: room to move during contact resolution
+    /// before the grid must be asked again.
+    fn proxy_of(&self, index: usize) -> Aabb {
+        let body = &self.bodies[index];
+        let margin = 0.5 * self.shapes[body.shape].local_box_half_extents.max_element();
+        let aabb = self.aabbs[index];
+        Aabb {
+            min: aabb.min - DVec3::splat(margin),
+            max: aabb.max + DVec3::splat(margin),
+        }
     }
 
     /// Every movable body whose lowest vertex is at or below y = 0 collides with the ground.
