@@ -14,6 +14,10 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Open the real-time viewer (the default when no command is given).
+    View(cli::view::ViewArgs),
+    /// Render a scene offscreen to .mp4, .gif or PNG frames.
+    Record(cli::view::RecordArgs),
     /// Simulate headless and print a summary (or JSON).
     Run(cli::run::RunArgs),
     /// List the built-in scenes.
@@ -24,6 +28,13 @@ enum Command {
         #[arg(long, default_value = ".")]
         root: std::path::PathBuf,
     },
+}
+
+/// `tumble` alone: the viewer on the default scene.
+#[derive(Parser)]
+struct DefaultView {
+    #[command(flatten)]
+    args: cli::view::ViewArgs,
 }
 
 fn main() -> ExitCode {
@@ -37,7 +48,9 @@ fn main() -> ExitCode {
             Ok(())
         }
         Some(Command::GenAssets { root }) => gen_assets(&root),
-        None => Err(anyhow::anyhow!("no command given; try `tumble --help`")),
+        Some(Command::View(args)) => cli::view::view(&args),
+        Some(Command::Record(args)) => cli::view::record(&args),
+        None => cli::view::view(&DefaultView::parse_from(["tumble"]).args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,6 +1,7 @@
 //! The `tumble` command line: argument types shared by the subcommands, and the subcommands.
 
 pub mod run;
+pub mod view;
 
 use clap::Args;
 use tumble::settings::{BroadPhase, ConstraintSchedule, RotationIntegrator};
