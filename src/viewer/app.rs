@@ -129,8 +129,12 @@ struct Gfx {
     egui_ctx: egui::Context,
     egui_state: egui_winit::State,
     egui_renderer: egui_wgpu::Renderer,
-    /// Window-sized copy target for screenshots and recordings.
+    /// Window-sized copy target for screenshots.
     capture: Option<Offscreen>,
+    /// The 3D view, rendered once per frame and copied into the window.
+    scene: Option<Offscreen>,
+    /// Whether the surface accepts copies (else the scene is drawn straight into it).
+    copy_to_surface: bool,
 }
 
 struct Drag {
@@ -251,7 +255,14 @@ impl App {
             .context("the window surface is not supported by the adapter")?;
         config.format = format;
         config.present_mode = present_mode;
-        config.usage = wgpu::TextureUsages::RENDER_ATTACHMENT;
+        let copy_to_surface = caps.usages.contains(wgpu::TextureUsages::COPY_DST)
+            && std::env::var_os("TUMBLE_NO_SURFACE_COPY").is_none();
+        config.usage = wgpu::TextureUsages::RENDER_ATTACHMENT
+            | if copy_to_surface {
+                wgpu::TextureUsages::COPY_DST
+            } else {
+                wgpu::TextureUsages::empty()
+            };
         surface.configure(&gpu.device, &config);
 
         let mut renderer = Renderer::new(&gpu, format);
@@ -290,6 +301,8 @@ impl App {
             egui_state,
             egui_renderer,
             capture: None,
+            scene: None,
+            copy_to_surface,
         });
         Ok(())
     }
@@ -469,6 +482,7 @@ impl App {
                         actions = panel::show(ui, session, panel_state, &info);
                     });
                 view_rect = ui.available_rect_before_wrap();
+                panel::overlay(ui.ctx(), view_rect, session, panel_state);
             });
             (output, view_rect)
         };
@@ -532,8 +546,7 @@ impl App {
         // Render.
         let gfx = self.gfx.as_mut().expect("checked");
         let (w, h) = (self.view_rect[2] as f64, self.view_rect[3] as f64);
-        gfx.renderer
-            .resize(&gfx.gpu.device, gfx.config.width, gfx.config.height);
+        let scene = prepare_scene_target(gfx, self.view_rect);
         gfx.renderer.prepare(
             &gfx.gpu.device,
             &gfx.gpu.queue,
@@ -601,27 +614,53 @@ impl App {
             &paint_jobs,
             &screen,
         );
-        let mut targets: Vec<&wgpu::TextureView> = Vec::new();
+        // The scene is drawn once into the view-sized scene texture and copied into each
+        // target (the window, and the capture for a screenshot); without copies into the
+        // surface it is drawn straight into each target.
         let surface_view = surface_texture.as_ref().map(|t| {
             t.texture
                 .create_view(&wgpu::TextureViewDescriptor::default())
         });
-        if let Some(view) = &surface_view {
-            targets.push(view);
+        let mut targets: Vec<(&wgpu::Texture, &wgpu::TextureView)> = Vec::new();
+        if let (Some(t), Some(view)) = (&surface_texture, &surface_view) {
+            targets.push((&t.texture, view));
         }
         if want_screenshot.is_some()
             && let Some(capture) = &gfx.capture
         {
-            targets.push(&capture.view);
+            targets.push((&capture.texture, &capture.view));
         }
-        for target in &targets {
-            gfx.renderer
-                .draw(&mut encoder, target, Some(self.view_rect));
+        if let Some(scene) = scene.and_then(|_| gfx.scene.as_ref())
+            && !targets.is_empty()
+        {
+            gfx.renderer.draw(&mut encoder, &scene.view, None);
+        }
+        for (texture, view) in &targets {
+            match scene.and_then(|origin| gfx.scene.as_ref().map(|s| (origin, s))) {
+                Some((origin, scene)) => {
+                    clear_pass(&mut encoder, view);
+                    encoder.copy_texture_to_texture(
+                        scene.texture.as_image_copy(),
+                        wgpu::TexelCopyTextureInfo {
+                            texture,
+                            mip_level: 0,
+                            origin,
+                            aspect: wgpu::TextureAspect::All,
+                        },
+                        wgpu::Extent3d {
+                            width: scene.width,
+                            height: scene.height,
+                            depth_or_array_layers: 1,
+                        },
+                    );
+                }
+                None => gfx.renderer.draw(&mut encoder, view, Some(self.view_rect)),
+            }
             let mut pass = encoder
                 .begin_render_pass(&wgpu::RenderPassDescriptor {
                     label: Some("egui"),
                     color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                        view: target,
+                        view,
                         depth_slice: None,
                         resolve_target: None,
                         ops: wgpu::Operations {
@@ -764,7 +803,60 @@ impl wgpu::rwh::HasDisplayHandle for DisplayHandle {
     }
 }
 
-/// Renders the scene alone into the window-sized capture texture and reads it back.
+/// Sizes the renderer's targets for this frame. With copies into the surface, the scene is
+/// drawn into a texture the size of the 3D view (MSAA targets that size too, not the whole
+/// window) and its origin in the window is returned; otherwise the targets are window-sized
+/// and the scene is drawn with a viewport.
+fn prepare_scene_target(gfx: &mut Gfx, view_rect: [f32; 4]) -> Option<wgpu::Origin3d> {
+    let device = &gfx.gpu.device;
+    if !gfx.copy_to_surface {
+        gfx.renderer
+            .resize(device, gfx.config.width, gfx.config.height);
+        return None;
+    }
+    let [x, y, w, h] = view_rect.map(|v| v.max(0.0).round() as u32);
+    let (w, h) = (
+        w.clamp(1, gfx.config.width - x.min(gfx.config.width - 1)),
+        h.clamp(1, gfx.config.height - y.min(gfx.config.height - 1)),
+    );
+    if gfx
+        .scene
+        .as_ref()
+        .is_none_or(|s| s.width != w || s.height != h)
+    {
+        gfx.scene = Some(Offscreen::new(device, w, h, gfx.config.format));
+    }
+    gfx.renderer.resize(device, w, h);
+    Some(wgpu::Origin3d { x, y, z: 0 })
+}
+
+/// Clears a target to the background colour.
+fn clear_pass(encoder: &mut wgpu::CommandEncoder, view: &wgpu::TextureView) {
+    let c = super::palette::linear(super::palette::BACKGROUND_SRGB);
+    encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some("clear"),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations {
+                load: wgpu::LoadOp::Clear(wgpu::Color {
+                    r: c[0] as f64,
+                    g: c[1] as f64,
+                    b: c[2] as f64,
+                    a: 1.0,
+                }),
+                store: wgpu::StoreOp::Store,
+            },
+        })],
+        depth_stencil_attachment: None,
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    });
+}
+
+/// Renders the scene alone and reads back the 3D view's pixels (top left = view's top left).
 fn render_capture(
     gfx: &mut Gfx,
     world: &World,
@@ -772,6 +864,23 @@ fn render_capture(
     draw: &DrawOptions,
     view_rect: [f32; 4],
 ) -> anyhow::Result<Image> {
+    let scene = prepare_scene_target(gfx, view_rect);
+    let (w, h) = (view_rect[2].max(1.0) as f64, view_rect[3].max(1.0) as f64);
+    gfx.renderer.prepare(
+        &gfx.gpu.device,
+        &gfx.gpu.queue,
+        world,
+        &camera.matrices(w / h),
+        draw,
+    );
+    let mut encoder = gfx.gpu.device.create_command_encoder(&Default::default());
+    if scene.is_some() {
+        let target = gfx.scene.as_ref().expect("sized above");
+        gfx.renderer.draw(&mut encoder, &target.view, None);
+        target.copy_to_buffer(&mut encoder);
+        gfx.gpu.queue.submit([encoder.finish()]);
+        return target.read(&gfx.gpu.device);
+    }
     let (width, height) = (gfx.config.width, gfx.config.height);
     if gfx
         .capture
@@ -786,20 +895,12 @@ fn render_capture(
         ));
     }
     let capture = gfx.capture.as_ref().expect("created above");
-    let (w, h) = (view_rect[2].max(1.0) as f64, view_rect[3].max(1.0) as f64);
-    gfx.renderer.prepare(
-        &gfx.gpu.device,
-        &gfx.gpu.queue,
-        world,
-        &camera.matrices(w / h),
-        draw,
-    );
-    let mut encoder = gfx.gpu.device.create_command_encoder(&Default::default());
     gfx.renderer
         .draw(&mut encoder, &capture.view, Some(view_rect));
     capture.copy_to_buffer(&mut encoder);
     gfx.gpu.queue.submit([encoder.finish()]);
-    capture.read(&gfx.gpu.device)
+    let [x, y, w, h] = view_rect.map(|v| v.max(0.0).round() as u32);
+    Ok(capture.read(&gfx.gpu.device)?.crop(x, y, w, h))
 }
 
 /// Pushes the recording's frames due at `world.time` (one per 1/fps of simulated time).
@@ -816,8 +917,8 @@ fn capture_due(
         return Ok(());
     }
     let image = render_capture(gfx, world, camera, draw, view_rect)?;
-    let [x, y, w, h] = rec.rect;
-    let frame = image.crop(x, y, w, h);
+    let [_, _, w, h] = rec.rect;
+    let frame = image.crop(0, 0, w, h);
     anyhow::ensure!(
         frame.width == w && frame.height == h,
         "the window shrank during the recording"

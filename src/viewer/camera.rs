@@ -66,7 +66,7 @@ impl OrbitCamera {
         self.scene_radius = radius;
         let half_fov_y = self.fov_y / 2.0;
         let half_fov_x = (half_fov_y.tan() * aspect.max(1e-3)).atan();
-        self.distance = radius / half_fov_y.min(half_fov_x).sin() * 1.02;
+        self.distance = radius / half_fov_y.min(half_fov_x).sin() * 1.08;
     }
 
     pub fn eye(&self) -> DVec3 {

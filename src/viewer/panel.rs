@@ -96,6 +96,41 @@ pub fn show(
                 actions.push(Action::Screenshot);
             }
         });
+        match info.recording {
+            Some((path, frames)) => {
+                ui.horizontal(|ui| {
+                    if ui.button("Stop recording").clicked() {
+                        actions.push(Action::StopRecording);
+                    }
+                    ui.colored_label(
+                        Color32::from_rgb(255, 90, 90),
+                        format!("REC {path}: {frames} frames"),
+                    );
+                });
+            }
+            None => {
+                ui.horizontal(|ui| {
+                    if ui
+                        .button("Record")
+                        .on_hover_text(
+                            "Record the 3D view: .mp4 (ffmpeg), .gif, or a directory for PNG frames; \
+                             frames are taken every 1/fps of simulated time",
+                        )
+                        .clicked()
+                    {
+                        actions.push(Action::StartRecording);
+                    }
+                    ui.add(
+                        egui::TextEdit::singleline(&mut state.record_path).desired_width(150.0),
+                    );
+                    ui.add(
+                        egui::DragValue::new(&mut state.record_fps)
+                            .range(1.0..=120.0)
+                            .suffix(" fps"),
+                    );
+                });
+            }
+        }
         if let Some(message) = &state.message {
             ui.label(RichText::new(message).small());
         }
@@ -118,27 +153,6 @@ pub fn show(
 
         egui::CollapsingHeader::new("Selected body").default_open(true).show(ui, |ui| selection_ui(ui, session, state.draw.selected));
 
-        egui::CollapsingHeader::new("Record").default_open(false).show(ui, |ui| {
-            match info.recording {
-                Some((path, frames)) => {
-                    ui.colored_label(Color32::from_rgb(255, 90, 90), format!("recording {path}: {frames} frames"));
-                    if ui.button("Stop recording").clicked() {
-                        actions.push(Action::StopRecording);
-                    }
-                }
-                None => {
-                    ui.horizontal(|ui| {
-                        ui.label("to");
-                        ui.text_edit_singleline(&mut state.record_path);
-                    });
-                    ui.add(egui::Slider::new(&mut state.record_fps, 5.0..=60.0).text("fps (of simulated time)"));
-                    ui.small(".mp4 (ffmpeg), .gif, or a directory for PNG frames");
-                    if ui.button("Start recording").clicked() {
-                        actions.push(Action::StartRecording);
-                    }
-                }
-            }
-        });
         ui.separator();
         ui.small("Drag: orbit · right/middle drag or shift-drag: pan · wheel: zoom · click: pick a body");
         ui.small("Space play/pause · S step · R reset · F frame · P screenshot · Esc deselect");
@@ -467,6 +481,49 @@ fn selection_ui(ui: &mut egui::Ui, session: &Session, selected: Option<usize>) {
                     "state",
                     RichText::new("frozen: went non-finite")
                         .color(Color32::from_rgb(255, 110, 110)),
+                );
+            }
+        });
+}
+
+/// A few lines over the top left corner of the 3D view: time, play state, the sim/real ratio
+/// when the simulation falls behind, and the picked body.
+pub fn overlay(ctx: &egui::Context, view: egui::Rect, session: &Session, state: &PanelState) {
+    egui::Area::new(egui::Id::unique("view_overlay"))
+        .fixed_pos(view.min + egui::vec2(10.0, 8.0))
+        .interactable(false)
+        .show(ctx, |ui| {
+            ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Extend);
+            let world = &session.world;
+            let play = if session.playing { "" } else { "  (paused)" };
+            ui.label(
+                RichText::new(format!("{}  t = {:.2} s{play}", session.scene, world.time))
+                    .color(Color32::from_gray(210)),
+            );
+            if session.playing
+                && let Some(r) = session.ratio()
+                && (r < 0.97 || session.behind)
+            {
+                ui.label(
+                    RichText::new(format!("simulation at {r:.2}x real time (cannot keep up)"))
+                        .color(Color32::from_rgb(255, 170, 60)),
+                );
+            }
+            if let Some(index) = state.draw.selected.filter(|&i| i < world.bodies.len()) {
+                let b = &world.bodies[index];
+                let v3 = |v: glam::DVec3| format!("({:.2}, {:.2}, {:.2})", v.x, v.y, v.z);
+                let mass = if b.fixed {
+                    "fixed".to_string()
+                } else {
+                    format!("{:.3}", b.mass)
+                };
+                ui.label(
+                    RichText::new(format!(
+                        "body {index}: mass {mass}\nvelocity {}\nangular velocity {}",
+                        v3(b.linear_velocity),
+                        v3(b.angular_velocity)
+                    ))
+                    .color(Color32::from_rgb(255, 220, 120)),
                 );
             }
         });

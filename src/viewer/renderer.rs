@@ -616,6 +616,24 @@ impl Renderer {
                 push_line(&mut self.lines, p1, p2, color);
             }
         }
+        if let Some(index) = options.selected.filter(|&i| i < world.bodies.len()) {
+            // Outline of the picked body, pulled slightly towards the eye so it wins the depth
+            // test against the body's own faces.
+            let eye = camera.eye.as_dvec3();
+            let color = with_alpha(palette::linear([1.0, 0.85, 0.25]), 1.0);
+            let vertices: Vec<DVec3> = world
+                .current_vertices(index)
+                .into_iter()
+                .map(|p| p + (eye - p) * 0.003)
+                .collect();
+            let shape = &world.shapes[world.bodies[index].shape];
+            for tri in &shape.triangles {
+                for k in 0..3 {
+                    let (a, b) = (tri[k] as usize, tri[(k + 1) % 3] as usize);
+                    push_line(&mut self.lines, vertices[a], vertices[b], color);
+                }
+            }
+        }
         if options.contacts {
             let point_color = with_alpha(palette::linear([1.0, 0.95, 0.2]), 1.0);
             let normal_color = with_alpha(palette::linear([1.0, 0.45, 0.1]), 1.0);
