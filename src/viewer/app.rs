@@ -630,7 +630,7 @@ impl App {
         {
             targets.push((&capture.texture, &capture.view));
         }
-        if let Some(scene) = scene.and_then(|_| gfx.scene.as_ref())
+        if let Some(scene) = scene.and(gfx.scene.as_ref())
             && !targets.is_empty()
         {
             gfx.renderer.draw(&mut encoder, &scene.view, None);
