@@ -31,13 +31,22 @@ fn convex_fan(mut vertices: Vec<DVec3>, mut triangles: Vec<[u32; 3]>) -> TetMesh
     let apex = vertices.len() as u32;
     vertices.push(center);
     let tetrahedra = triangles.iter().map(|t| [apex, t[0], t[1], t[2]]).collect();
-    TetMesh { vertices, tetrahedra, triangles }
+    TetMesh {
+        vertices,
+        tetrahedra,
+        triangles,
+    }
 }
 
 /// Regular tetrahedron with circumradius `r`, centred on the origin.
 pub fn tetrahedron(r: f64) -> TetMesh {
     let s = r / 3f64.sqrt();
-    let vertices = vec![DVec3::new(s, s, s), DVec3::new(s, -s, -s), DVec3::new(-s, s, -s), DVec3::new(-s, -s, s)];
+    let vertices = vec![
+        DVec3::new(s, s, s),
+        DVec3::new(s, -s, -s),
+        DVec3::new(-s, s, -s),
+        DVec3::new(-s, -s, s),
+    ];
     // A single tetrahedron needs no interior vertex.
     let mut mesh = convex_fan(vertices, vec![[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]]);
     mesh.vertices.pop();
@@ -51,15 +60,40 @@ pub fn tetrahedron(r: f64) -> TetMesh {
 
 /// Box with half extents `h`.
 pub fn cuboid(h: DVec3) -> TetMesh {
-    let vertices: Vec<DVec3> = (0..8).map(|i| DVec3::new(if i & 1 == 0 { -h.x } else { h.x }, if i & 2 == 0 { -h.y } else { h.y }, if i & 4 == 0 { -h.z } else { h.z })).collect();
-    let quads = [[0, 1, 3, 2], [4, 5, 7, 6], [0, 1, 5, 4], [2, 3, 7, 6], [0, 2, 6, 4], [1, 3, 7, 5]];
-    let triangles = quads.iter().flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]]).collect();
+    let vertices: Vec<DVec3> = (0..8)
+        .map(|i| {
+            DVec3::new(
+                if i & 1 == 0 { -h.x } else { h.x },
+                if i & 2 == 0 { -h.y } else { h.y },
+                if i & 4 == 0 { -h.z } else { h.z },
+            )
+        })
+        .collect();
+    let quads = [
+        [0, 1, 3, 2],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 3, 7, 6],
+        [0, 2, 6, 4],
+        [1, 3, 7, 5],
+    ];
+    let triangles = quads
+        .iter()
+        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+        .collect();
     convex_fan(vertices, triangles)
 }
 
 /// Octahedron with semi-axes `h`.
 pub fn octahedron(h: DVec3) -> TetMesh {
-    let vertices = vec![DVec3::X * h.x, -DVec3::X * h.x, DVec3::Y * h.y, -DVec3::Y * h.y, DVec3::Z * h.z, -DVec3::Z * h.z];
+    let vertices = vec![
+        DVec3::X * h.x,
+        -DVec3::X * h.x,
+        DVec3::Y * h.y,
+        -DVec3::Y * h.y,
+        DVec3::Z * h.z,
+        -DVec3::Z * h.z,
+    ];
     let mut triangles = Vec::new();
     for &x in &[0u32, 1] {
         for &y in &[2u32, 3] {
@@ -76,7 +110,11 @@ pub fn cylinder(radius: f64, height: f64, segments: u32) -> TetMesh {
     let mut vertices = Vec::new();
     for k in 0..segments {
         let a = 2.0 * PI * k as f64 / segments as f64;
-        vertices.push(DVec3::new(radius * a.cos(), -height / 2.0, radius * a.sin()));
+        vertices.push(DVec3::new(
+            radius * a.cos(),
+            -height / 2.0,
+            radius * a.sin(),
+        ));
         vertices.push(DVec3::new(radius * a.cos(), height / 2.0, radius * a.sin()));
     }
     let bottom = vertices.len() as u32;
@@ -100,7 +138,11 @@ pub fn ellipsoid(h: DVec3, rings: u32, segments: u32) -> TetMesh {
         let theta = PI * i as f64 / rings as f64;
         for k in 0..segments {
             let phi = 2.0 * PI * k as f64 / segments as f64;
-            vertices.push(DVec3::new(h.x * theta.sin() * phi.cos(), h.y * theta.cos(), h.z * theta.sin() * phi.sin()));
+            vertices.push(DVec3::new(
+                h.x * theta.sin() * phi.cos(),
+                h.y * theta.cos(),
+                h.z * theta.sin() * phi.sin(),
+            ));
         }
     }
     let ring = |i: u32, k: u32| 2 + (i - 1) * segments + (k % segments);
@@ -118,10 +160,28 @@ pub fn ellipsoid(h: DVec3, rings: u32, segments: u32) -> TetMesh {
 
 /// The built-in stress scene: dozens of mixed bodies falling between fixed cylinder posts.
 pub fn stress_scene() -> String {
-    let meshes = ["tetrahedron", "box", "octahedron", "long-octahedron", "cylinder", "ellipsoid"];
+    let meshes = [
+        "tetrahedron",
+        "box",
+        "octahedron",
+        "long-octahedron",
+        "cylinder",
+        "ellipsoid",
+    ];
     let mut records = Vec::new();
-    for (x, z) in [(-60.0, -60.0), (-60.0, 0.0), (-60.0, 60.0), (0.0, -60.0), (0.0, 60.0), (60.0, -60.0), (60.0, 0.0), (60.0, 60.0)] {
-        records.push(format!("../assets/cylinder.mesh\t5000\t1\t{x} 5 {z}\t0.7071067811865476 0.7071067811865476 0 0"));
+    for (x, z) in [
+        (-60.0, -60.0),
+        (-60.0, 0.0),
+        (-60.0, 60.0),
+        (0.0, -60.0),
+        (0.0, 60.0),
+        (60.0, -60.0),
+        (60.0, 0.0),
+        (60.0, 60.0),
+    ] {
+        records.push(format!(
+            "../assets/cylinder.mesh\t5000\t1\t{x} 5 {z}\t0.7071067811865476 0.7071067811865476 0 0"
+        ));
     }
     let mut k = 0;
     for layer in 0..3 {
@@ -129,11 +189,18 @@ pub fn stress_scene() -> String {
             for j in 0..4 {
                 let mesh = meshes[k % meshes.len()];
                 let density = [50.0, 200.0, 800.0][k % 3];
-                let (x, y, z) = (-45.0 + 30.0 * i as f64 + 3.0 * layer as f64, 30.0 + 25.0 * layer as f64, -45.0 + 30.0 * j as f64);
+                let (x, y, z) = (
+                    -45.0 + 30.0 * i as f64 + 3.0 * layer as f64,
+                    30.0 + 25.0 * layer as f64,
+                    -45.0 + 30.0 * j as f64,
+                );
                 // A deterministic spread of tilts.
                 let a = 0.3 * (k as f64 * 0.7).sin();
                 let (s, c) = (0.5 * a).sin_cos();
-                records.push(format!("../assets/{mesh}.mesh\t{density}\t0\t{x} {y} {z}\t{c} {s} {} 0", s * 0.5));
+                records.push(format!(
+                    "../assets/{mesh}.mesh\t{density}\t0\t{x} {y} {z}\t{c} {s} {} 0",
+                    s * 0.5
+                ));
                 k += 1;
             }
         }
@@ -147,7 +214,10 @@ pub fn stress_scene() -> String {
 
 /// Files written by `tumble gen-assets`, relative to the repository root.
 pub fn generated_files() -> Vec<(String, String)> {
-    let mut files: Vec<(String, String)> = all_meshes().into_iter().map(|(name, mesh)| (format!("assets/{name}.mesh"), write_medit(&mesh))).collect();
+    let mut files: Vec<(String, String)> = all_meshes()
+        .into_iter()
+        .map(|(name, mesh)| (format!("assets/{name}.mesh"), write_medit(&mesh)))
+        .collect();
     files.push(("scenes/stress-scene.txt".into(), stress_scene()));
     files
 }

@@ -32,12 +32,25 @@ pub struct RigidBody {
 
 impl RigidBody {
     /// A body of `density` on a shape of `volume` and unit-density inertia `unit_inertia`.
-    pub fn new(shape: usize, volume: f64, unit_inertia: DMat3, density: f64, fixed: bool, position: DVec3, orientation: DQuat) -> Self {
+    pub fn new(
+        shape: usize,
+        volume: f64,
+        unit_inertia: DMat3,
+        density: f64,
+        fixed: bool,
+        position: DVec3,
+        orientation: DQuat,
+    ) -> Self {
         let (mass, inverse_mass, inertia, inverse_inertia) = if fixed {
             (f64::INFINITY, 0.0, unit_inertia * density, DMat3::ZERO)
         } else {
             let inertia = unit_inertia * density;
-            (density * volume, 1.0 / (density * volume), inertia, inertia.inverse())
+            (
+                density * volume,
+                1.0 / (density * volume),
+                inertia,
+                inertia.inverse(),
+            )
         };
         Self {
             shape,
@@ -91,11 +104,19 @@ impl RigidBody {
 
     /// Inverse mass as seen by contacts and constraints (zero for frozen bodies too).
     pub fn effective_inverse_mass(&self) -> f64 {
-        if self.quarantined { 0.0 } else { self.inverse_mass }
+        if self.quarantined {
+            0.0
+        } else {
+            self.inverse_mass
+        }
     }
 
     pub fn effective_world_inverse_inertia(&self) -> DMat3 {
-        if self.quarantined { DMat3::ZERO } else { self.world_inverse_inertia() }
+        if self.quarantined {
+            DMat3::ZERO
+        } else {
+            self.world_inverse_inertia()
+        }
     }
 
     pub fn is_finite(&self) -> bool {
@@ -111,7 +132,8 @@ impl RigidBody {
             return 0.0;
         }
         let w = self.angular_velocity;
-        0.5 * self.mass * self.linear_velocity.length_squared() + 0.5 * w.dot(self.world_inertia() * w)
+        0.5 * self.mass * self.linear_velocity.length_squared()
+            + 0.5 * w.dot(self.world_inertia() * w)
             - self.mass * gravity.dot(self.position)
     }
 }

@@ -26,9 +26,13 @@ pub fn body_aabb(body: &RigidBody, shape: &Shape) -> Aabb {
     let r = body.rotation();
     let abs = DMat3::from_cols(r.x_axis.abs(), r.y_axis.abs(), r.z_axis.abs());
     let center = body.world_point(shape.local_box_center);
-    let pad = 1e-9 * (shape.local_box_half_extents.max_element() + center.abs().max_element()) + 1e-12;
+    let pad =
+        1e-9 * (shape.local_box_half_extents.max_element() + center.abs().max_element()) + 1e-12;
     let half = abs * shape.local_box_half_extents + DVec3::splat(pad);
-    Aabb { min: center - half, max: center + half }
+    Aabb {
+        min: center - half,
+        max: center + half,
+    }
 }
 
 /// FxHash-style multiplicative hasher for cell keys: fast, and deterministic across runs.
@@ -70,7 +74,14 @@ pub struct Grid {
 impl Grid {
     /// A grid whose cells are about the size of a typical body.
     pub fn new(cell_size: f64) -> Self {
-        Self { cell_size: if cell_size.is_finite() && cell_size > 0.0 { cell_size } else { 1.0 }, ..Default::default() }
+        Self {
+            cell_size: if cell_size.is_finite() && cell_size > 0.0 {
+                cell_size
+            } else {
+                1.0
+            },
+            ..Default::default()
+        }
     }
 
     pub fn cell_size(&self) -> f64 {
@@ -86,7 +97,9 @@ impl Grid {
         }
         let lo = [lo.x as i64, lo.y as i64, lo.z as i64];
         let hi = [hi.x as i64, hi.y as i64, hi.z as i64];
-        (0..3).all(|k| hi[k] - lo[k] < MAX_CELLS_PER_AXIS).then_some((lo, hi))
+        (0..3)
+            .all(|k| hi[k] - lo[k] < MAX_CELLS_PER_AXIS)
+            .then_some((lo, hi))
     }
 
     fn key(x: i64, y: i64, z: i64) -> u64 {
@@ -126,7 +139,9 @@ impl Grid {
             Some(range) => {
                 self.ranges[index] = Some(range);
                 let cells = &mut self.cells;
-                Self::for_cells(range, |key| cells.entry(key).or_default().push(index as u32));
+                Self::for_cells(range, |key| {
+                    cells.entry(key).or_default().push(index as u32)
+                });
             }
             None => self.oversized.push(index as u32),
         }
@@ -156,7 +171,12 @@ impl Grid {
 
     /// Every pair (i < j) of inserted bodies whose boxes overlap and for which `keep(i, j)`,
     /// sorted, each once. `tested` counts the box comparisons made.
-    pub fn overlapping_pairs(&self, aabbs: &[Aabb], keep: impl Fn(usize, usize) -> bool, tested: &mut usize) -> Vec<(u32, u32)> {
+    pub fn overlapping_pairs(
+        &self,
+        aabbs: &[Aabb],
+        keep: impl Fn(usize, usize) -> bool,
+        tested: &mut usize,
+    ) -> Vec<(u32, u32)> {
         let mut pairs = Vec::new();
         let mut consider = |a: u32, b: u32, pairs: &mut Vec<(u32, u32)>| {
             let (i, j) = if a < b { (a, b) } else { (b, a) };
@@ -237,7 +257,10 @@ impl Grid {
 /// Cell size for a set of bodies: the median diagonal of their boxes, so a typical body spans
 /// one or two cells per axis.
 pub fn typical_cell_size(half_extents: impl Iterator<Item = DVec3>) -> f64 {
-    let mut sizes: Vec<f64> = half_extents.map(|h| 2.0 * h.length()).filter(|s| s.is_finite() && *s > 0.0).collect();
+    let mut sizes: Vec<f64> = half_extents
+        .map(|h| 2.0 * h.length())
+        .filter(|s| s.is_finite() && *s > 0.0)
+        .collect();
     if sizes.is_empty() {
         return 1.0;
     }

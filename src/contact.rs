@@ -28,7 +28,12 @@ pub struct ContactParams {
 /// `j = -(1+e) (u.n) / (m_1^-1 + m_2^-1 + (r_1 x n).I_1(r_1 x n) + (r_2 x n).I_2(r_2 x n))`.
 /// Like the coursework it applies the impulse even to separating bodies unless
 /// `params.skip_separating` is set. Returns whether anything moved.
-pub fn resolve_contact(body1: &mut RigidBody, body2: &mut RigidBody, contact: &Contact, params: &ContactParams) -> bool {
+pub fn resolve_contact(
+    body1: &mut RigidBody,
+    body2: &mut RigidBody,
+    contact: &Contact,
+    params: &ContactParams,
+) -> bool {
     let inverse_mass1 = body1.effective_inverse_mass();
     let inverse_mass2 = body2.effective_inverse_mass();
     let total = inverse_mass1 + inverse_mass2;
@@ -50,7 +55,11 @@ pub fn resolve_contact(body1: &mut RigidBody, body2: &mut RigidBody, contact: &C
     if params.skip_separating && normal_speed <= 0.0 {
         return true;
     }
-    let restitution = if normal_speed.abs() < params.restitution_threshold { 0.0 } else { params.restitution };
+    let restitution = if normal_speed.abs() < params.restitution_threshold {
+        0.0
+    } else {
+        params.restitution
+    };
     let arm1_n = arm1.cross(n);
     let arm2_n = arm2.cross(n);
     let effective_inverse_mass =

@@ -8,16 +8,37 @@ use rayon::prelude::*;
 
 /// Advances every movable body by `dt`. Fixed and quarantined bodies are skipped.
 pub fn integrate_bodies(bodies: &mut [RigidBody], settings: &Settings, dt: f64) {
-    bodies.par_iter_mut().with_min_len(256).filter(|b| b.is_dynamic()).for_each(|body| integrate_body(body, settings, dt));
+    bodies
+        .par_iter_mut()
+        .with_min_len(256)
+        .filter(|b| b.is_dynamic())
+        .for_each(|body| integrate_body(body, settings, dt));
 }
 
 pub fn integrate_body(body: &mut RigidBody, settings: &Settings, dt: f64) {
     body.linear_velocity += dt * settings.gravity;
     body.position += dt * body.linear_velocity;
-    if settings.rotation_integrator == RotationIntegrator::Gyroscopic {
-        body.angular_velocity = gyroscopic_step(body, dt);
+    match settings.rotation_integrator {
+        RotationIntegrator::Coursework => {}
+        RotationIntegrator::Gyroscopic => body.angular_velocity = gyroscopic_step(body, dt),
+        RotationIntegrator::AngularMomentum => {
+            // Torque-free: world angular momentum L is constant over the step. Rotate by the
+            // angular velocity at the half-step orientation (explicit midpoint, second order),
+            // then read the new angular velocity off L: |L| and L are kept exactly.
+            let momentum = body.world_inertia() * body.angular_velocity;
+            let half = rotate_by(body.orientation, body.angular_velocity, 0.5 * dt);
+            let w_half = inverse_inertia_at(body, half) * momentum;
+            body.orientation = rotate_by(body.orientation, w_half, dt);
+            body.angular_velocity = inverse_inertia_at(body, body.orientation) * momentum;
+            return;
+        }
     }
     body.orientation = rotate_by(body.orientation, body.angular_velocity, dt);
+}
+
+fn inverse_inertia_at(body: &RigidBody, q: DQuat) -> DMat3 {
+    let r = DMat3::from_quat(q);
+    r * body.inverse_inertia * r.transpose()
 }
 
 /// `normalise(exp((0, dt/2 w)) q)` with `exp((0, theta u)) = (cos theta, sin theta u)`:
@@ -52,5 +73,9 @@ fn gyroscopic_step(body: &RigidBody, dt: f64) -> DVec3 {
 }
 
 fn skew(v: DVec3) -> DMat3 {
-    DMat3::from_cols(DVec3::new(0.0, v.z, -v.y), DVec3::new(-v.z, 0.0, v.x), DVec3::new(v.y, -v.x, 0.0))
+    DMat3::from_cols(
+        DVec3::new(0.0, v.z, -v.y),
+        DVec3::new(-v.z, 0.0, v.x),
+        DVec3::new(v.y, -v.x, 0.0),
+    )
 }

@@ -6,12 +6,15 @@
 //! constraints in flat arrays; [`World::step`] runs the stages in order: integrate, broad phase,
 //! narrow phase and contact resolution, ground contacts, constraints, pose check.
 
+pub mod accuracy;
 pub mod assets;
 pub mod body;
 pub mod broad_phase;
 pub mod constraint;
 pub mod contact;
 pub mod formats;
+pub mod fuzzing;
+pub mod generate;
 pub mod integrate;
 pub mod narrow_phase;
 pub mod scene;

@@ -5,6 +5,9 @@ mod cli;
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
+#[global_allocator]
+static ALLOCATOR: cli::alloc::CountingAlloc = cli::alloc::CountingAlloc;
+
 #[derive(Parser)]
 #[command(name = "tumble", version, about = "Rigid-body simulation of convex tet meshes with distance constraints", long_about = None)]
 struct Cli {
@@ -20,6 +23,9 @@ enum Command {
     Record(cli::view::RecordArgs),
     /// Simulate headless and print a summary (or JSON).
     Run(cli::run::RunArgs),
+    /// Benchmarks: `scale` (run time against scene size) and `accuracy` (error against run time).
+    #[command(subcommand)]
+    Bench(BenchCommand),
     /// List the built-in scenes.
     Scenes,
     /// Regenerate tumble's meshes in assets/ and its generated scenes in scenes/.
@@ -37,10 +43,20 @@ struct DefaultView {
     args: cli::view::ViewArgs,
 }
 
+#[derive(Subcommand)]
+enum BenchCommand {
+    /// ms/step against N for generated scenes: the coursework's loop vs tumble on 1 and all cores.
+    Scale(cli::bench_scale::ScaleArgs),
+    /// Error against run time per scenario, setting combination and time step.
+    Accuracy(cli::bench_accuracy::AccuracyArgs),
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Some(Command::Run(args)) => cli::run::run(&args),
+        Some(Command::Bench(BenchCommand::Scale(args))) => cli::bench_scale::run(&args),
+        Some(Command::Bench(BenchCommand::Accuracy(args))) => cli::bench_accuracy::run(&args),
         Some(Command::Scenes) => {
             for (name, file) in tumble::BUILTIN_SCENES {
                 println!("{name:16} scenes/{file}");
@@ -64,7 +80,8 @@ fn main() -> ExitCode {
 fn gen_assets(root: &std::path::Path) -> anyhow::Result<()> {
     for (path, text) in tumble::assets::generated_files() {
         let full = root.join(&path);
-        std::fs::write(&full, text).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", full.display()))?;
+        std::fs::write(&full, text)
+            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", full.display()))?;
         println!("wrote {}", full.display());
     }
     Ok(())

@@ -2,7 +2,10 @@
 
 use crate::body::RigidBody;
 use crate::constraint::DistanceConstraint;
-use crate::formats::{ConstraintRecord, LoadError, SceneRecord, TetMesh, limits, parse_constraints, parse_medit, parse_off, parse_scene};
+use crate::formats::{
+    ConstraintRecord, LoadError, SceneRecord, TetMesh, limits, parse_constraints, parse_medit,
+    parse_off, parse_scene,
+};
 use crate::settings::Settings;
 use crate::shape::Shape;
 use crate::world::World;
@@ -44,21 +47,63 @@ pub const DEFAULT_SCENE: &str = "mixed";
 
 /// Files compiled into the binary, addressed by their path in the repository.
 const EMBEDDED: &[(&str, &str)] = &[
-    ("scenes/mixed-scene.txt", include_str!("../scenes/mixed-scene.txt")),
-    ("scenes/tower-scene.txt", include_str!("../scenes/tower-scene.txt")),
-    ("scenes/two-chain-scene.txt", include_str!("../scenes/two-chain-scene.txt")),
-    ("scenes/two-chain-constraints.txt", include_str!("../scenes/two-chain-constraints.txt")),
-    ("scenes/cube-scene.txt", include_str!("../scenes/cube-scene.txt")),
-    ("scenes/cube-constraints.txt", include_str!("../scenes/cube-constraints.txt")),
-    ("scenes/stress-scene.txt", include_str!("../scenes/stress-scene.txt")),
-    ("scenes/two-cylinders-scene.txt", include_str!("../scenes/two-cylinders-scene.txt")),
-    ("scenes/two-cylinders-constraints.txt", include_str!("../scenes/two-cylinders-constraints.txt")),
-    ("assets/tetrahedron.mesh", include_str!("../assets/tetrahedron.mesh")),
+    (
+        "scenes/mixed-scene.txt",
+        include_str!("../scenes/mixed-scene.txt"),
+    ),
+    (
+        "scenes/tower-scene.txt",
+        include_str!("../scenes/tower-scene.txt"),
+    ),
+    (
+        "scenes/two-chain-scene.txt",
+        include_str!("../scenes/two-chain-scene.txt"),
+    ),
+    (
+        "scenes/two-chain-constraints.txt",
+        include_str!("../scenes/two-chain-constraints.txt"),
+    ),
+    (
+        "scenes/cube-scene.txt",
+        include_str!("../scenes/cube-scene.txt"),
+    ),
+    (
+        "scenes/cube-constraints.txt",
+        include_str!("../scenes/cube-constraints.txt"),
+    ),
+    (
+        "scenes/stress-scene.txt",
+        include_str!("../scenes/stress-scene.txt"),
+    ),
+    (
+        "scenes/two-cylinders-scene.txt",
+        include_str!("../scenes/two-cylinders-scene.txt"),
+    ),
+    (
+        "scenes/two-cylinders-constraints.txt",
+        include_str!("../scenes/two-cylinders-constraints.txt"),
+    ),
+    (
+        "assets/tetrahedron.mesh",
+        include_str!("../assets/tetrahedron.mesh"),
+    ),
     ("assets/box.mesh", include_str!("../assets/box.mesh")),
-    ("assets/octahedron.mesh", include_str!("../assets/octahedron.mesh")),
-    ("assets/long-octahedron.mesh", include_str!("../assets/long-octahedron.mesh")),
-    ("assets/cylinder.mesh", include_str!("../assets/cylinder.mesh")),
-    ("assets/ellipsoid.mesh", include_str!("../assets/ellipsoid.mesh")),
+    (
+        "assets/octahedron.mesh",
+        include_str!("../assets/octahedron.mesh"),
+    ),
+    (
+        "assets/long-octahedron.mesh",
+        include_str!("../assets/long-octahedron.mesh"),
+    ),
+    (
+        "assets/cylinder.mesh",
+        include_str!("../assets/cylinder.mesh"),
+    ),
+    (
+        "assets/ellipsoid.mesh",
+        include_str!("../assets/ellipsoid.mesh"),
+    ),
 ];
 
 /// Where scene, mesh and constraint files are read from.
@@ -71,15 +116,34 @@ struct Disk;
 
 impl FileSource for Disk {
     fn read(&self, path: &Path) -> Result<String, LoadError> {
-        let meta = std::fs::metadata(path).map_err(|e| LoadError::new(path, None, format!("cannot open: {e}")))?;
+        let meta = std::fs::metadata(path)
+            .map_err(|e| LoadError::new(path, None, format!("cannot open: {e}")))?;
         if meta.is_dir() {
             return Err(LoadError::new(path, None, "is a directory, not a file"));
         }
         if meta.len() > limits::MAX_FILE_BYTES {
-            return Err(LoadError::new(path, None, format!("file is {} bytes, more than the limit of {}", meta.len(), limits::MAX_FILE_BYTES)));
+            return Err(LoadError::new(
+                path,
+                None,
+                format!(
+                    "file is {} bytes, more than the limit of {}",
+                    meta.len(),
+                    limits::MAX_FILE_BYTES
+                ),
+            ));
         }
-        let bytes = std::fs::read(path).map_err(|e| LoadError::new(path, None, format!("cannot read: {e}")))?;
-        String::from_utf8(bytes).map_err(|e| LoadError::new(path, None, format!("not a text file (invalid UTF-8 at byte {})", e.utf8_error().valid_up_to())))
+        let bytes = std::fs::read(path)
+            .map_err(|e| LoadError::new(path, None, format!("cannot read: {e}")))?;
+        String::from_utf8(bytes).map_err(|e| {
+            LoadError::new(
+                path,
+                None,
+                format!(
+                    "not a text file (invalid UTF-8 at byte {})",
+                    e.utf8_error().valid_up_to()
+                ),
+            )
+        })
     }
     fn exists(&self, path: &Path) -> bool {
         path.is_file()
@@ -121,26 +185,59 @@ impl FileSource for Embedded {
 
 /// Text of a built-in file (used by the asset tests and `tumble scenes`).
 pub fn embedded_file(path: &str) -> Option<&'static str> {
-    EMBEDDED.iter().find(|(name, _)| *name == path).map(|(_, text)| *text)
+    EMBEDDED
+        .iter()
+        .find(|(name, _)| *name == path)
+        .map(|(_, text)| *text)
 }
 
 /// Loads a scene by path, or by built-in name when no such file exists.
-pub fn load(scene: &str, constraints: &ConstraintsChoice, settings: Settings) -> Result<World, LoadError> {
+pub fn load(
+    scene: &str,
+    constraints: &ConstraintsChoice,
+    settings: Settings,
+) -> Result<World, LoadError> {
     let path = Path::new(scene);
     if path.exists() {
         return load_file(path, constraints, settings);
     }
+    if let Some(world) = generated(scene, &settings) {
+        return Ok(world);
+    }
     match BUILTIN_SCENES.iter().find(|(name, _)| *name == scene) {
-        Some((_, file)) => load_with(&Embedded, &Path::new("scenes").join(file), constraints, settings),
+        Some((_, file)) => load_with(
+            &Embedded,
+            &Path::new("scenes").join(file),
+            constraints,
+            settings,
+        ),
         None => {
             let names: Vec<&str> = BUILTIN_SCENES.iter().map(|(n, _)| *n).collect();
-            Err(LoadError::new(path, None, format!("no such file, and not a built-in scene (built-in: {})", names.join(", "))))
+            Err(LoadError::new(
+                path,
+                None,
+                format!(
+                    "no such file, and not a built-in scene (built-in: {}; generated: sparse-N, pile-N, chain-N)",
+                    names.join(", ")
+                ),
+            ))
         }
     }
 }
 
+/// `sparse-N`, `pile-N` or `chain-N` (N at most 1,000,000): a generated scene.
+fn generated(name: &str, settings: &Settings) -> Option<World> {
+    let (kind, n) = name.rsplit_once('-')?;
+    let n: usize = n.parse().ok().filter(|n| (1..=1_000_000).contains(n))?;
+    crate::generate::by_name(kind, n, settings.clone())
+}
+
 /// Loads a scene file from disk; mesh paths are relative to its folder.
-pub fn load_file(path: &Path, constraints: &ConstraintsChoice, settings: Settings) -> Result<World, LoadError> {
+pub fn load_file(
+    path: &Path,
+    constraints: &ConstraintsChoice,
+    settings: Settings,
+) -> Result<World, LoadError> {
     load_with(&Disk, path, constraints, settings)
 }
 
@@ -151,7 +248,12 @@ pub fn default_constraints_path(scene: &Path) -> Option<PathBuf> {
     Some(scene.with_file_name(format!("{stem}-constraints.txt")))
 }
 
-fn load_with(source: &dyn FileSource, path: &Path, constraints: &ConstraintsChoice, settings: Settings) -> Result<World, LoadError> {
+fn load_with(
+    source: &dyn FileSource,
+    path: &Path,
+    constraints: &ConstraintsChoice,
+    settings: Settings,
+) -> Result<World, LoadError> {
     let text = source.read(path)?;
     let records = parse_scene(path, &text)?;
     let folder = path.parent().unwrap_or(Path::new(""));
@@ -173,9 +275,24 @@ fn load_with(source: &dyn FileSource, path: &Path, constraints: &ConstraintsChoi
             }
         };
         let shape = &shapes[shape_index];
-        let body = RigidBody::new(shape_index, shape.volume, shape.unit_inertia, record.density, record.fixed, record.position, record.orientation);
-        if !body.fixed && !(body.inverse_mass.is_finite() && body.inverse_inertia.is_finite() && body.inverse_mass > 0.0) {
-            return Err(LoadError::new(path, Some(record.line), "the body's mass or inertia is not invertible (density or mesh too small or too large)"));
+        let body = RigidBody::new(
+            shape_index,
+            shape.volume,
+            shape.unit_inertia,
+            record.density,
+            record.fixed,
+            record.position,
+            record.orientation,
+        );
+        let invertible = body.inverse_mass.is_finite()
+            && body.inverse_inertia.is_finite()
+            && body.inverse_mass > 0.0;
+        if !body.fixed && !invertible {
+            return Err(LoadError::new(
+                path,
+                Some(record.line),
+                "the body's mass or inertia is not invertible (density or mesh too small or too large)",
+            ));
         }
         bodies.push(body);
     }
@@ -194,24 +311,48 @@ fn load_with(source: &dyn FileSource, path: &Path, constraints: &ConstraintsChoi
             _ => source.read(&cpath)?,
         };
         let records = parse_constraints(&cpath, &text)?;
-        distance_constraints = build_constraints(&cpath, &records, &bodies, &shapes, &mut warnings)?;
+        distance_constraints =
+            build_constraints(&cpath, &records, &bodies, &shapes, &mut warnings)?;
     }
     let mut world = World::new(shapes, shape_names, bodies, distance_constraints, settings);
     world.warnings = warnings;
     Ok(world)
 }
 
-fn load_shape(source: &dyn FileSource, mesh_path: &Path, scene_path: &Path, record: &SceneRecord) -> Result<Shape, LoadError> {
-    let extension = mesh_path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
+fn load_shape(
+    source: &dyn FileSource,
+    mesh_path: &Path,
+    scene_path: &Path,
+    record: &SceneRecord,
+) -> Result<Shape, LoadError> {
+    let extension = mesh_path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
     let parse: fn(&Path, &str) -> Result<TetMesh, LoadError> = match extension.as_deref() {
         Some("mesh") => parse_medit,
         Some("off") => parse_off,
         _ => {
-            return Err(LoadError::new(scene_path, Some(record.line), format!("mesh '{}' is neither a .mesh nor an .off file", record.mesh_path)));
+            return Err(LoadError::new(
+                scene_path,
+                Some(record.line),
+                format!(
+                    "mesh '{}' is neither a .mesh nor an .off file",
+                    record.mesh_path
+                ),
+            ));
         }
     };
     if !source.exists(mesh_path) {
-        return Err(LoadError::new(scene_path, Some(record.line), format!("mesh file '{}' not found (looked for {})", record.mesh_path, mesh_path.display())));
+        return Err(LoadError::new(
+            scene_path,
+            Some(record.line),
+            format!(
+                "mesh file '{}' not found (looked for {})",
+                record.mesh_path,
+                mesh_path.display()
+            ),
+        ));
     }
     let text = source.read(mesh_path)?;
     let mesh = parse(mesh_path, &text)?;
@@ -220,24 +361,56 @@ fn load_shape(source: &dyn FileSource, mesh_path: &Path, scene_path: &Path, reco
 
 /// Each record becomes a lower and an upper inequality on the distance between the two vertices,
 /// relative to their distance `d0` once the scene is placed.
-fn build_constraints(file: &Path, records: &[ConstraintRecord], bodies: &[RigidBody], shapes: &[Shape], warnings: &mut Vec<String>) -> Result<Vec<DistanceConstraint>, LoadError> {
+fn build_constraints(
+    file: &Path,
+    records: &[ConstraintRecord],
+    bodies: &[RigidBody],
+    shapes: &[Shape],
+    warnings: &mut Vec<String>,
+) -> Result<Vec<DistanceConstraint>, LoadError> {
     let mut out = Vec::with_capacity(2 * records.len());
     for r in records {
         for (body, vertex) in [(r.body1, r.vertex1), (r.body2, r.vertex2)] {
             if body >= bodies.len() {
-                return Err(LoadError::new(file, Some(r.line), format!("body index {body} is out of range: the scene has {} bodies", bodies.len())));
+                return Err(LoadError::new(
+                    file,
+                    Some(r.line),
+                    format!(
+                        "body index {body} is out of range: the scene has {} bodies",
+                        bodies.len()
+                    ),
+                ));
             }
             let count = shapes[bodies[body].shape].rest_vertices.len();
             if vertex >= count {
-                return Err(LoadError::new(file, Some(r.line), format!("vertex index {vertex} is out of range: body {body}'s mesh has {count} vertices")));
+                return Err(LoadError::new(
+                    file,
+                    Some(r.line),
+                    format!(
+                        "vertex index {vertex} is out of range: body {body}'s mesh has {count} vertices"
+                    ),
+                ));
             }
         }
         if r.body1 == r.body2 {
-            return Err(LoadError::new(file, Some(r.line), format!("a constraint needs two different bodies, both are {}", r.body1)));
+            return Err(LoadError::new(
+                file,
+                Some(r.line),
+                format!(
+                    "a constraint needs two different bodies, both are {}",
+                    r.body1
+                ),
+            ));
         }
         let (b1, b2) = (&bodies[r.body1], &bodies[r.body2]);
         if b1.fixed && b2.fixed {
-            warnings.push(format!("{}:{}: constraint between two fixed bodies ({} and {}) ignored", file.display(), r.line, r.body1, r.body2));
+            warnings.push(format!(
+                "{}:{}: constraint between two fixed bodies ({} and {}) ignored",
+                file.display(),
+                r.line,
+                r.body1,
+                r.body2
+            ));
             continue;
         }
         let local1 = shapes[b1.shape].rest_vertices[r.vertex1];

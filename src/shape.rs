@@ -45,7 +45,11 @@ pub fn tet_mass_properties(vertices: &[DVec3], tetrahedra: &[[u32; 4]]) -> MassP
         volume += v;
         moment += v * (p[0] + p[1] + p[2] + p[3]) / 4.0;
     }
-    let center_of_mass = if volume != 0.0 { moment / volume } else { DVec3::ZERO };
+    let center_of_mass = if volume != 0.0 {
+        moment / volume
+    } else {
+        DVec3::ZERO
+    };
 
     // Second pass about the centre of mass: no cancellation between large moments.
     let mut covariance = DMat3::ZERO;
@@ -61,7 +65,11 @@ pub fn tet_mass_properties(vertices: &[DVec3], tetrahedra: &[[u32; 4]]) -> MassP
     }
     let trace = covariance.x_axis.x + covariance.y_axis.y + covariance.z_axis.z;
     let unit_inertia = DMat3::from_diagonal(DVec3::splat(trace)) - covariance;
-    MassProperties { volume, center_of_mass, unit_inertia }
+    MassProperties {
+        volume,
+        center_of_mass,
+        unit_inertia,
+    }
 }
 
 pub(crate) fn outer(a: DVec3, b: DVec3) -> DMat3 {
@@ -104,14 +112,23 @@ impl Shape {
             return Err(ShapeError::NonFinite);
         }
         let props = tet_mass_properties(&mesh.vertices, &mesh.tetrahedra);
-        let scale = mesh.vertices.iter().map(|v| v.abs().max_element()).fold(0.0, f64::max).max(1e-300);
+        let scale = mesh
+            .vertices
+            .iter()
+            .map(|v| v.abs().max_element())
+            .fold(0.0, f64::max)
+            .max(1e-300);
         if !props.volume.is_finite() || props.volume.abs() <= 1e-12 * scale.powi(3) {
             return Err(ShapeError::Degenerate);
         }
         if props.volume < 0.0 {
             return Err(ShapeError::Inverted(props.volume));
         }
-        let rest_vertices: Vec<DVec3> = mesh.vertices.iter().map(|v| *v - props.center_of_mass).collect();
+        let rest_vertices: Vec<DVec3> = mesh
+            .vertices
+            .iter()
+            .map(|v| *v - props.center_of_mass)
+            .collect();
         let mut triangles = if mesh.triangles.is_empty() {
             boundary_triangles(&mesh.tetrahedra)
         } else {
@@ -119,9 +136,10 @@ impl Shape {
         };
         orient_outward(&rest_vertices, &mut triangles);
         let hull = ConvexPolyhedron::from_convex_hull(&rest_vertices).ok_or(ShapeError::NoHull)?;
-        let (min, max) = rest_vertices
-            .iter()
-            .fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), v| (lo.min(*v), hi.max(*v)));
+        let (min, max) = rest_vertices.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), v| (lo.min(*v), hi.max(*v)),
+        );
         Ok(Shape {
             rest_vertices,
             triangles,
@@ -154,7 +172,15 @@ fn boundary_triangles(tetrahedra: &[[u32; 4]]) -> Vec<[u32; 3]> {
             entry.0 += 1;
         }
     }
-    order.into_iter().filter_map(|key| count.get(&key).filter(|(n, _)| *n == 1).map(|(_, tri)| *tri)).collect()
+    order
+        .into_iter()
+        .filter_map(|key| {
+            count
+                .get(&key)
+                .filter(|(n, _)| *n == 1)
+                .map(|(_, tri)| *tri)
+        })
+        .collect()
 }
 
 /// Makes the boundary face outward as a whole: if the enclosed signed volume (about the centre of

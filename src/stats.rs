@@ -16,7 +16,13 @@ pub struct StageTimings {
 
 impl StageTimings {
     pub fn total(&self) -> f64 {
-        self.integrate + self.broad_phase + self.narrow_phase + self.contact_resolution + self.ground + self.constraints + self.finalize
+        self.integrate
+            + self.broad_phase
+            + self.narrow_phase
+            + self.contact_resolution
+            + self.ground
+            + self.constraints
+            + self.finalize
     }
 
     pub fn add(&mut self, other: &StageTimings) {

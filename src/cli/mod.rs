@@ -1,5 +1,11 @@
 //! The `tumble` command line: argument types shared by the subcommands, and the subcommands.
 
+pub mod alloc;
+pub mod bench_accuracy;
+pub mod bench_scale;
+pub mod plot;
+#[cfg(feature = "compare-rapier")]
+pub mod rapier;
 pub mod run;
 pub mod view;
 
@@ -32,6 +38,9 @@ pub struct SettingsArgs {
     /// Contacts closing slower than this (units/s) bounce with e = 0.
     #[arg(long, value_name = "SPEED")]
     pub restitution_threshold: Option<f64>,
+    /// Contacts act at the centroid of the contact patch instead of one deepest point.
+    #[arg(long)]
+    pub contact_patches: bool,
     /// Substeps per step.
     #[arg(long, value_name = "N")]
     pub substeps: Option<u32>,
@@ -48,29 +57,49 @@ pub struct SettingsArgs {
 
 impl SettingsArgs {
     pub fn settings(&self) -> anyhow::Result<Settings> {
-        let mut s = if self.accurate { Settings::accurate() } else { Settings::default() };
+        let mut s = if self.accurate {
+            Settings::accurate()
+        } else {
+            Settings::default()
+        };
         if let Some(v) = self.dt {
-            anyhow::ensure!(v.is_finite() && v >= 0.0, "--dt must be a non-negative number of seconds, got {v}");
+            anyhow::ensure!(
+                v.is_finite() && v >= 0.0,
+                "--dt must be a non-negative number of seconds, got {v}"
+            );
             s.time_step = v;
         }
         if let Some(v) = self.restitution {
-            anyhow::ensure!((0.0..=1.0).contains(&v), "--restitution must lie in [0, 1], got {v}");
+            anyhow::ensure!(
+                (0.0..=1.0).contains(&v),
+                "--restitution must lie in [0, 1], got {v}"
+            );
             s.restitution = v;
         }
         if let Some(v) = self.max_iterations {
             s.max_iterations = v;
         }
         if let Some(v) = self.tolerance {
-            anyhow::ensure!(v.is_finite() && v >= 0.0, "--tolerance must be non-negative, got {v}");
+            anyhow::ensure!(
+                v.is_finite() && v >= 0.0,
+                "--tolerance must be non-negative, got {v}"
+            );
             s.tolerance = v;
         }
         s.skip_separating_contacts |= self.skip_separating_contacts;
+        s.contact_patches |= self.contact_patches;
         if let Some(v) = self.restitution_threshold {
-            anyhow::ensure!(v.is_finite() && v >= 0.0, "--restitution-threshold must be non-negative, got {v}");
+            anyhow::ensure!(
+                v.is_finite() && v >= 0.0,
+                "--restitution-threshold must be non-negative, got {v}"
+            );
             s.restitution_threshold = v;
         }
         if let Some(v) = self.substeps {
-            anyhow::ensure!((1..=1000).contains(&v), "--substeps must lie in 1..=1000, got {v}");
+            anyhow::ensure!(
+                (1..=1000).contains(&v),
+                "--substeps must lie in 1..=1000, got {v}"
+            );
             s.substeps = v;
         }
         if let Some(v) = self.rotation_integrator {
@@ -126,16 +155,26 @@ pub fn progress_bar(len: u64, what: &str) -> indicatif::ProgressBar {
 
 /// Writes a file through a temporary sibling and renames it into place, so an interrupted run
 /// never leaves a half-written file under the final name.
-pub fn write_atomically(path: &std::path::Path, write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>) -> anyhow::Result<()> {
+pub fn write_atomically(
+    path: &std::path::Path,
+    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> anyhow::Result<()> {
     use anyhow::Context;
     use std::io::Write;
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "out".into());
     let tmp = path.with_file_name(format!(".{name}.partial"));
-    let file = std::fs::File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
+    let file =
+        std::fs::File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
     let mut writer = std::io::BufWriter::new(file);
     write(&mut writer).with_context(|| format!("cannot write {}", tmp.display()))?;
-    writer.flush().with_context(|| format!("cannot write {}", tmp.display()))?;
+    writer
+        .flush()
+        .with_context(|| format!("cannot write {}", tmp.display()))?;
     drop(writer);
-    std::fs::rename(&tmp, path).with_context(|| format!("cannot move {} to {}", tmp.display(), path.display()))?;
+    std::fs::rename(&tmp, path)
+        .with_context(|| format!("cannot move {} to {}", tmp.display(), path.display()))?;
     Ok(())
 }

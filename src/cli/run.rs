@@ -58,7 +58,11 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         use std::fmt::Write;
         for (i, b) in world.bodies.iter().enumerate() {
             let (p, q) = (b.position, b.orientation);
-            let _ = writeln!(out, "{},{},{},{},{},{},{},{},{},{}", world.step_count, world.time, i, p.x, p.y, p.z, q.w, q.x, q.y, q.z);
+            let _ = writeln!(
+                out,
+                "{},{},{},{},{},{},{},{},{},{}",
+                world.step_count, world.time, i, p.x, p.y, p.z, q.w, q.x, q.y, q.z
+            );
         }
     };
     if args.trajectory.is_some() {
@@ -97,11 +101,16 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         summary.max_penetration = summary.max_penetration.max(stats.max_penetration);
         summary.stage_ms.add(&stats.timings);
         for b in stats.quarantined {
-            eprintln!("warning: body {b} went non-finite at step {} and was frozen", world.step_count);
+            eprintln!(
+                "warning: body {b} went non-finite at step {} and was frozen",
+                world.step_count
+            );
             summary.quarantined.push(b);
         }
         if !world.constraints.is_empty() {
-            summary.max_constraint_violation = summary.max_constraint_violation.max(world.max_constraint_violation());
+            summary.max_constraint_violation = summary
+                .max_constraint_violation
+                .max(world.max_constraint_violation());
         }
         if args.trajectory.is_some() {
             record(&world, &mut trajectory);
@@ -113,12 +122,24 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     bar.finish_and_clear();
     summary.wall_s = start.elapsed().as_secs_f64();
     summary.sim_time = world.time;
-    summary.steps_per_s = if summary.wall_s > 0.0 { args.steps as f64 / summary.wall_s } else { f64::INFINITY };
+    summary.steps_per_s = if summary.wall_s > 0.0 {
+        args.steps as f64 / summary.wall_s
+    } else {
+        f64::INFINITY
+    };
     summary.energy_end = world.total_energy();
     summary.finite = world.all_finite() && summary.quarantined.is_empty();
     let per_step = 1000.0 / args.steps.max(1) as f64;
     let t = &mut summary.stage_ms;
-    for slot in [&mut t.integrate, &mut t.broad_phase, &mut t.narrow_phase, &mut t.contact_resolution, &mut t.ground, &mut t.constraints, &mut t.finalize] {
+    for slot in [
+        &mut t.integrate,
+        &mut t.broad_phase,
+        &mut t.narrow_phase,
+        &mut t.contact_resolution,
+        &mut t.ground,
+        &mut t.constraints,
+        &mut t.finalize,
+    ] {
         *slot *= per_step;
     }
 
@@ -134,14 +155,36 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
 }
 
 fn print_summary(s: &RunSummary) {
-    println!("scene {}: {} bodies, {} constraints", s.scene, s.bodies, s.constraints);
-    println!("{} steps ({:.2} s simulated) in {:.3} s wall: {:.0} steps/s", s.steps, s.sim_time, s.wall_s, s.steps_per_s);
-    println!("contacts {} body-body, {} ground; deepest penetration {:.4}", s.contacts, s.ground_contacts, s.max_penetration);
+    println!(
+        "scene {}: {} bodies, {} constraints",
+        s.scene, s.bodies, s.constraints
+    );
+    println!(
+        "{} steps ({:.2} s simulated) in {:.3} s wall: {:.0} steps/s",
+        s.steps, s.sim_time, s.wall_s, s.steps_per_s
+    );
+    println!(
+        "contacts {} body-body, {} ground; deepest penetration {:.4}",
+        s.contacts, s.ground_contacts, s.max_penetration
+    );
     if s.constraints > 0 {
-        println!("constraint visits {}, budget hit in {} steps, worst violation {:.4}", s.constraint_visits, s.budget_hits, s.max_constraint_violation);
+        println!(
+            "constraint visits {}, budget hit in {} steps, worst violation {:.4}",
+            s.constraint_visits, s.budget_hits, s.max_constraint_violation
+        );
     }
-    println!("energy {:.6e} -> {:.6e} ({:+.3}%)", s.energy_start, s.energy_end, 100.0 * (s.energy_end - s.energy_start) / s.energy_start.abs().max(1e-300));
+    println!(
+        "energy {:.6e} -> {:.6e} ({:+.3}%)",
+        s.energy_start,
+        s.energy_end,
+        100.0 * (s.energy_end - s.energy_start) / s.energy_start.abs().max(1e-300)
+    );
     println!("all values finite: {}", s.finite);
-    let stages: Vec<String> = s.stage_ms.named().iter().map(|(n, v)| format!("{n} {v:.3}")).collect();
+    let stages: Vec<String> = s
+        .stage_ms
+        .named()
+        .iter()
+        .map(|(n, v)| format!("{n} {v:.3}"))
+        .collect();
     println!("ms/step: {}", stages.join(", "));
 }

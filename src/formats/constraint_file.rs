@@ -29,13 +29,27 @@ pub fn parse_constraints(file: &Path, text: &str) -> Result<Vec<ConstraintRecord
         let (lower, lower_line) = tokens.real("the lower bound")?;
         let (upper, _) = tokens.real("the upper bound")?;
         if lower < 0.0 || upper < lower {
-            return Err(tokens.error(lower_line, format!("bounds must satisfy 0 <= lower <= upper, found {lower} and {upper}")));
+            return Err(tokens.error(
+                lower_line,
+                format!("bounds must satisfy 0 <= lower <= upper, found {lower} and {upper}"),
+            ));
         }
-        records.push(ConstraintRecord { body1, vertex1, body2, vertex2, lower, upper, line });
+        records.push(ConstraintRecord {
+            body1,
+            vertex1,
+            body2,
+            vertex2,
+            lower,
+            upper,
+            line,
+        });
     }
     if let Some(extra) = tokens.peek() {
         let line = extra.line;
-        return Err(tokens.error(line, format!("the file declares {count} constraints but has more records after them")));
+        return Err(tokens.error(
+            line,
+            format!("the file declares {count} constraints but has more records after them"),
+        ));
     }
     Ok(records)
 }

@@ -26,7 +26,10 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
             "meshversionformatted" | "dimension" => {
                 let (value, line) = tokens.index("a number after the keyword")?;
                 if keyword == "dimension" && value != 3 {
-                    return Err(tokens.error(line, format!("only 3-dimensional meshes are supported, found Dimension {value}")));
+                    return Err(tokens.error(
+                        line,
+                        format!("only 3-dimensional meshes are supported, found Dimension {value}"),
+                    ));
                 }
             }
             "vertices" => {
@@ -81,10 +84,18 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
     }
 
     if !seen_vertices || mesh.vertices.is_empty() {
-        return Err(LoadError::new(file, None, "the mesh has no vertices (missing 'Vertices' section)"));
+        return Err(LoadError::new(
+            file,
+            None,
+            "the mesh has no vertices (missing 'Vertices' section)",
+        ));
     }
     if mesh.tetrahedra.is_empty() {
-        return Err(LoadError::new(file, None, "the mesh has no tetrahedra (missing 'Tetrahedra' section)"));
+        return Err(LoadError::new(
+            file,
+            None,
+            "the mesh has no tetrahedra (missing 'Tetrahedra' section)",
+        ));
     }
     let n = mesh.vertices.len();
     for (tet, &line) in mesh.tetrahedra.iter().zip(&tet_lines) {
@@ -104,12 +115,21 @@ fn one_based(tokens: &mut Tokens, what: &str) -> Result<u32, LoadError> {
     u32::try_from(value - 1).map_err(|_| tokens.error(line, format!("{what} {value} is too large")))
 }
 
-fn check_indices(tokens: &Tokens, element: &[u32], vertex_count: usize, line: usize, what: &str) -> Result<(), LoadError> {
+fn check_indices(
+    tokens: &Tokens,
+    element: &[u32],
+    vertex_count: usize,
+    line: usize,
+    what: &str,
+) -> Result<(), LoadError> {
     for &index in element {
         if index as usize >= vertex_count {
             return Err(tokens.error(
                 line,
-                format!("{what} refers to vertex {} but the mesh has only {vertex_count} vertices", index + 1),
+                format!(
+                    "{what} refers to vertex {} but the mesh has only {vertex_count} vertices",
+                    index + 1
+                ),
             ));
         }
     }

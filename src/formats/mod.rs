@@ -39,7 +39,11 @@ pub struct LoadError {
 
 impl LoadError {
     pub fn new(file: impl Into<PathBuf>, line: Option<usize>, message: impl Into<String>) -> Self {
-        Self { file: file.into(), line, message: message.into() }
+        Self {
+            file: file.into(),
+            line,
+            message: message.into(),
+        }
     }
 
     /// The same error attributed to another file (a reader works on text, the caller knows the path).

@@ -18,9 +18,15 @@ pub fn parse_off(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
     }
     let vertex_count = tokens.count("the vertex count", 3, MAX_MESH_ELEMENTS)?;
     let (face_count, face_line) = tokens.index("the face count")?;
-    tokens.index("the edge count")?;
+    // The edge count is optional (some exporters write only two numbers).
+    if tokens.peek().is_some_and(|t| t.line == face_line) {
+        tokens.index("the edge count")?;
+    }
     if face_count > MAX_MESH_ELEMENTS || face_count > tokens.remaining() / 4 {
-        return Err(tokens.error(face_line, format!("the face count {face_count} is more than the file can hold")));
+        return Err(tokens.error(
+            face_line,
+            format!("the face count {face_count} is more than the file can hold"),
+        ));
     }
     let mut vertices = Vec::with_capacity(vertex_count);
     for _ in 0..vertex_count {
@@ -33,7 +39,10 @@ pub fn parse_off(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
     for _ in 0..face_count {
         let (corners, line) = tokens.index("the number of corners of a face")?;
         if !(3..=1024).contains(&corners) {
-            return Err(tokens.error(line, format!("a face needs 3 to 1024 corners, found {corners}")));
+            return Err(tokens.error(
+                line,
+                format!("a face needs 3 to 1024 corners, found {corners}"),
+            ));
         }
         let mut polygon = Vec::with_capacity(corners);
         for _ in 0..corners {
@@ -58,7 +67,11 @@ pub fn parse_off(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
 }
 
 /// Builds tetrahedra (centroid, a, b, c) over a closed surface, orienting the triangles outward.
-fn fan_tetrahedralise(file: &Path, mut vertices: Vec<DVec3>, mut triangles: Vec<[u32; 3]>) -> Result<TetMesh, LoadError> {
+fn fan_tetrahedralise(
+    file: &Path,
+    mut vertices: Vec<DVec3>,
+    mut triangles: Vec<[u32; 3]>,
+) -> Result<TetMesh, LoadError> {
     // Signed volume and first moment by the divergence theorem, about the vertex mean for accuracy.
     let origin = vertices.iter().copied().sum::<DVec3>() / vertices.len() as f64;
     let mut volume = 0.0;
@@ -69,8 +82,12 @@ fn fan_tetrahedralise(file: &Path, mut vertices: Vec<DVec3>, mut triangles: Vec<
         volume += v;
         moment += v * (a + b + c) / 4.0;
     }
-    if !(volume.abs() > 0.0) || !volume.is_finite() {
-        return Err(LoadError::new(file, None, "the surface encloses no volume (degenerate or open mesh)"));
+    if volume == 0.0 || !volume.is_finite() {
+        return Err(LoadError::new(
+            file,
+            None,
+            "the surface encloses no volume (degenerate or open mesh)",
+        ));
     }
     if volume < 0.0 {
         for t in &mut triangles {
@@ -81,5 +98,9 @@ fn fan_tetrahedralise(file: &Path, mut vertices: Vec<DVec3>, mut triangles: Vec<
     let apex = vertices.len() as u32;
     vertices.push(centroid);
     let tetrahedra = triangles.iter().map(|t| [apex, t[0], t[1], t[2]]).collect();
-    Ok(TetMesh { vertices, tetrahedra, triangles })
+    Ok(TetMesh {
+        vertices,
+        tetrahedra,
+        triangles,
+    })
 }

@@ -29,11 +29,17 @@ pub fn parse_scene(file: &Path, text: &str) -> Result<Vec<SceneRecord>, LoadErro
         let (density, density_line) = tokens.real("the density")?;
         let (fixed, fixed_line) = tokens.index("the is_fixed flag (0 or 1)")?;
         if fixed > 1 {
-            return Err(tokens.error(fixed_line, format!("the is_fixed flag must be 0 or 1, found {fixed}")));
+            return Err(tokens.error(
+                fixed_line,
+                format!("the is_fixed flag must be 0 or 1, found {fixed}"),
+            ));
         }
         let fixed = fixed == 1;
         if !fixed && density <= 0.0 {
-            return Err(tokens.error(density_line, format!("a movable body needs a positive density, found {density}")));
+            return Err(tokens.error(
+                density_line,
+                format!("a movable body needs a positive density, found {density}"),
+            ));
         }
         let (x, _) = tokens.real("the x position")?;
         let (y, _) = tokens.real("the y position")?;
@@ -44,8 +50,11 @@ pub fn parse_scene(file: &Path, text: &str) -> Result<Vec<SceneRecord>, LoadErro
         let (qz, _) = tokens.real("the quaternion z")?;
         let q = DQuat::from_xyzw(qx, qy, qz, qw);
         let norm = q.length();
-        if !(norm > 1e-12) || !norm.is_finite() {
-            return Err(tokens.error(q_line, "the orientation quaternion is zero and cannot be normalised"));
+        if norm.is_nan() || norm <= 1e-12 || !norm.is_finite() {
+            return Err(tokens.error(
+                q_line,
+                "the orientation quaternion is zero and cannot be normalised",
+            ));
         }
         records.push(SceneRecord {
             mesh_path,
@@ -58,7 +67,10 @@ pub fn parse_scene(file: &Path, text: &str) -> Result<Vec<SceneRecord>, LoadErro
     }
     if let Some(extra) = tokens.peek() {
         let line = extra.line;
-        return Err(tokens.error(line, format!("the file declares {count} bodies but has more records after them")));
+        return Err(tokens.error(
+            line,
+            format!("the file declares {count} bodies but has more records after them"),
+        ));
     }
     Ok(records)
 }

@@ -27,11 +27,19 @@ impl<'a> Tokens<'a> {
                 None => line,
             };
             for word in content.split_whitespace() {
-                tokens.push(Token { text: word, line: index + 1 });
+                tokens.push(Token {
+                    text: word,
+                    line: index + 1,
+                });
             }
             last_line = index + 1;
         }
-        Self { tokens, next: 0, file, last_line }
+        Self {
+            tokens,
+            next: 0,
+            file,
+            last_line,
+        }
     }
 
     pub fn error(&self, line: usize, message: impl Into<String>) -> LoadError {
@@ -87,15 +95,26 @@ impl<'a> Tokens<'a> {
         }
         match text.parse::<f64>() {
             Ok(v) if v >= 0.0 && v.fract() == 0.0 && v < 1e15 => Ok((v as usize, line)),
-            _ => Err(self.error(line, format!("expected {what} (a non-negative integer), found '{text}'"))),
+            _ => Err(self.error(
+                line,
+                format!("expected {what} (a non-negative integer), found '{text}'"),
+            )),
         }
     }
 
     /// A count of records that follow, each of at least `tokens_per_record` tokens, at most `limit`.
-    pub fn count(&mut self, what: &str, tokens_per_record: usize, limit: usize) -> Result<usize, LoadError> {
+    pub fn count(
+        &mut self,
+        what: &str,
+        tokens_per_record: usize,
+        limit: usize,
+    ) -> Result<usize, LoadError> {
         let (count, line) = self.index(what)?;
         if count > limit {
-            return Err(self.error(line, format!("{what} is {count}, more than the limit of {limit}")));
+            return Err(self.error(
+                line,
+                format!("{what} is {count}, more than the limit of {limit}"),
+            ));
         }
         let available = self.remaining() / tokens_per_record.max(1);
         if count > available {

@@ -3,7 +3,6 @@
 use super::renderer::DrawOptions;
 use super::session::Session;
 use crate::Settings;
-use crate::settings::{BroadPhase, ConstraintSchedule, RotationIntegrator};
 use egui::{Color32, RichText};
 use egui_plot::{Line, Plot, PlotPoints};
 
@@ -239,6 +238,7 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
         gravity,
         skip_separating_contacts,
         restitution_threshold,
+        contact_patches,
         substeps,
         rotation_integrator,
         broad_phase,
@@ -271,31 +271,33 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
         ui.add(egui::DragValue::new(&mut gravity.z).speed(0.1).prefix("z "));
     });
     ui.checkbox(skip_separating_contacts, "skip separating contacts");
-    egui::ComboBox::from_label("rotation integrator")
-        .selected_text(format!("{rotation_integrator:?}"))
+    ui.checkbox(
+        contact_patches,
+        "contact patches (force at the patch centroid)",
+    );
+    enum_choice(ui, "rotation integrator", rotation_integrator);
+    enum_choice(ui, "broad phase", broad_phase);
+    enum_choice(ui, "constraint schedule", constraint_schedule);
+}
+
+/// A combo box over every variant of a settings enum (new variants appear by themselves).
+fn enum_choice<T: clap::ValueEnum + PartialEq + Copy + std::fmt::Debug>(
+    ui: &mut egui::Ui,
+    label: &str,
+    value: &mut T,
+) {
+    egui::ComboBox::from_label(label)
+        .selected_text(format!("{value:?}"))
         .show_ui(ui, |ui| {
-            ui.selectable_value(
-                rotation_integrator,
-                RotationIntegrator::Coursework,
-                "Coursework",
-            );
-            ui.selectable_value(
-                rotation_integrator,
-                RotationIntegrator::Gyroscopic,
-                "Gyroscopic",
-            );
-        });
-    egui::ComboBox::from_label("broad phase")
-        .selected_text(format!("{broad_phase:?}"))
-        .show_ui(ui, |ui| {
-            ui.selectable_value(broad_phase, BroadPhase::Grid, "Grid");
-            ui.selectable_value(broad_phase, BroadPhase::AllPairs, "AllPairs");
-        });
-    egui::ComboBox::from_label("constraint schedule")
-        .selected_text(format!("{constraint_schedule:?}"))
-        .show_ui(ui, |ui| {
-            ui.selectable_value(constraint_schedule, ConstraintSchedule::Sweep, "Sweep");
-            ui.selectable_value(constraint_schedule, ConstraintSchedule::Sparse, "Sparse");
+            for variant in T::value_variants() {
+                let help = variant
+                    .to_possible_value()
+                    .and_then(|v| v.get_help().map(|h| h.to_string()));
+                let response = ui.selectable_value(value, *variant, format!("{variant:?}"));
+                if let Some(help) = help {
+                    response.on_hover_text(help);
+                }
+            }
         });
 }
 

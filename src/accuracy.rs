@@ -1,0 +1,533 @@
+//! Accuracy scenarios: small worlds with an independent reference (closed form, conservation law,
+//! or a fine-step / RK4 solution), each returning its error metrics. Used by
+//! `tumble bench accuracy` and by the tests of the opt-in settings.
+
+use crate::assets;
+use crate::body::RigidBody;
+use crate::constraint::DistanceConstraint;
+use crate::settings::Settings;
+use crate::shape::Shape;
+use crate::world::World;
+use glam::{DMat3, DQuat, DVec3};
+use serde::Serialize;
+use std::time::Instant;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum Scenario {
+    FreeFall,
+    SpinEllipsoid,
+    SpinLongOctahedron,
+    Bounce,
+    Pendulum,
+    Tower,
+    Chains,
+    MixedEnergy,
+}
+
+impl Scenario {
+    pub const ALL: [Scenario; 8] = [
+        Scenario::FreeFall,
+        Scenario::SpinEllipsoid,
+        Scenario::SpinLongOctahedron,
+        Scenario::Bounce,
+        Scenario::Pendulum,
+        Scenario::Tower,
+        Scenario::Chains,
+        Scenario::MixedEnergy,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Scenario::FreeFall => "free_fall",
+            Scenario::SpinEllipsoid => "spin_ellipsoid",
+            Scenario::SpinLongOctahedron => "spin_long_octahedron",
+            Scenario::Bounce => "bounce",
+            Scenario::Pendulum => "pendulum",
+            Scenario::Tower => "tower",
+            Scenario::Chains => "chains",
+            Scenario::MixedEnergy => "mixed_energy",
+        }
+    }
+
+    /// Name of the metric the plots use (the others are reported alongside).
+    pub fn primary_metric(self) -> &'static str {
+        match self {
+            Scenario::FreeFall => "position_error",
+            Scenario::SpinEllipsoid | Scenario::SpinLongOctahedron => "flip_time_error",
+            Scenario::Bounce => "apex_ratio_error",
+            Scenario::Pendulum => "period_error",
+            Scenario::Tower => "drift",
+            Scenario::Chains => "worst_relative_violation",
+            Scenario::MixedEnergy => "energy_drift",
+        }
+    }
+
+    /// Simulated seconds.
+    pub fn duration(self) -> f64 {
+        match self {
+            Scenario::FreeFall => 5.0,
+            Scenario::SpinEllipsoid | Scenario::SpinLongOctahedron => 20.0,
+            Scenario::Bounce => 12.0,
+            Scenario::Pendulum => 20.0,
+            Scenario::Tower | Scenario::Chains | Scenario::MixedEnergy => 10.0,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Outcome {
+    /// Wall-clock seconds per simulated second.
+    pub wall_per_sim_second: f64,
+    /// (metric name, value); the scenario's primary metric comes first.
+    pub metrics: Vec<(String, f64)>,
+    pub finite: bool,
+}
+
+impl Outcome {
+    pub fn primary(&self) -> f64 {
+        self.metrics[0].1
+    }
+    pub fn metric(&self, name: &str) -> Option<f64> {
+        self.metrics
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, v)| *v)
+    }
+}
+
+fn shape(mesh: &crate::formats::TetMesh) -> Shape {
+    Shape::from_tet_mesh(mesh).expect("tumble's meshes are valid")
+}
+
+fn body_on(
+    shape: &Shape,
+    index: usize,
+    density: f64,
+    fixed: bool,
+    position: DVec3,
+    orientation: DQuat,
+) -> RigidBody {
+    RigidBody::new(
+        index,
+        shape.volume,
+        shape.unit_inertia,
+        density,
+        fixed,
+        position,
+        orientation,
+    )
+}
+
+fn single(shape: Shape, body: RigidBody, settings: Settings) -> World {
+    World::new(
+        vec![shape],
+        vec!["body".into()],
+        vec![body],
+        Vec::new(),
+        settings,
+    )
+}
+
+/// Runs `world` for `duration` simulated seconds calling `observe` after every step.
+fn simulate(
+    world: &mut World,
+    duration: f64,
+    mut observe: impl FnMut(&World, &crate::StepStats),
+) -> f64 {
+    let steps = if world.settings.time_step > 0.0 {
+        (duration / world.settings.time_step).round() as usize
+    } else {
+        0
+    };
+    let start = Instant::now();
+    for _ in 0..steps {
+        let stats = world.step();
+        observe(world, &stats);
+    }
+    start.elapsed().as_secs_f64() / duration
+}
+
+pub fn run(scenario: Scenario, settings: &Settings) -> Outcome {
+    let settings = settings.clone();
+    let (wall, metrics, finite) = match scenario {
+        Scenario::FreeFall => free_fall(settings),
+        Scenario::SpinEllipsoid => spin(
+            shape(&assets::ellipsoid(DVec3::new(6.0, 4.0, 2.5), 10, 20)),
+            DVec3::Y,
+            settings,
+        ),
+        Scenario::SpinLongOctahedron => spin(
+            shape(&assets::octahedron(DVec3::new(3.0, 10.0, 4.0))),
+            DVec3::Z,
+            settings,
+        ),
+        Scenario::Bounce => bounce(settings),
+        Scenario::Pendulum => pendulum(settings),
+        Scenario::Tower => tower(settings),
+        Scenario::Chains => chains(settings),
+        Scenario::MixedEnergy => mixed_energy(settings),
+    };
+    Outcome {
+        wall_per_sim_second: wall,
+        metrics,
+        finite,
+    }
+}
+
+type Measured = (f64, Vec<(String, f64)>, bool);
+
+fn m(name: &str, value: f64) -> (String, f64) {
+    (name.to_string(), value)
+}
+
+/// A box thrown upwards high above the ground: position error against `x0 + v0 t + g t^2 / 2`.
+fn free_fall(settings: Settings) -> Measured {
+    let s = shape(&assets::cuboid(DVec3::new(1.0, 1.0, 1.0)));
+    let mut b = body_on(
+        &s,
+        0,
+        100.0,
+        false,
+        DVec3::new(0.0, 1000.0, 0.0),
+        DQuat::IDENTITY,
+    );
+    let v0 = DVec3::new(3.0, 20.0, 1.0);
+    b.linear_velocity = v0;
+    let (x0, g) = (b.position, settings.gravity);
+    let mut world = single(s, b, settings);
+    let duration = Scenario::FreeFall.duration();
+    let mut worst: f64 = 0.0;
+    let wall = simulate(&mut world, duration, |w, _| {
+        let t = w.time;
+        worst = worst.max((w.bodies[0].position - (x0 + v0 * t + 0.5 * g * t * t)).length());
+    });
+    let finite = world.all_finite();
+    (wall, vec![m("position_error", worst)], finite)
+}
+
+/// Body-frame reference of torque-free motion: Euler's equations and the quaternion kinematics
+/// integrated with classical RK4 at a tiny step.
+pub fn torque_free_reference(
+    inertia: DMat3,
+    w_body0: DVec3,
+    q0: DQuat,
+    duration: f64,
+    h: f64,
+) -> Vec<(f64, DVec3, DQuat)> {
+    let inverse = inertia.inverse();
+    let f = |w: DVec3, q: DQuat| -> (DVec3, DQuat) {
+        let dw = inverse * (-w.cross(inertia * w));
+        let dq = q * DQuat::from_xyzw(w.x, w.y, w.z, 0.0) * 0.5;
+        (dw, dq)
+    };
+    let steps = (duration / h).round() as usize;
+    let mut out = Vec::with_capacity(steps + 1);
+    let (mut w, mut q) = (w_body0, q0);
+    out.push((0.0, w, q));
+    for k in 0..steps {
+        let (k1w, k1q) = f(w, q);
+        let (k2w, k2q) = f(w + k1w * (h / 2.0), q + k1q * (h / 2.0));
+        let (k3w, k3q) = f(w + k2w * (h / 2.0), q + k2q * (h / 2.0));
+        let (k4w, k4q) = f(w + k3w * h, q + k3q * h);
+        w += (k1w + k2w * 2.0 + k3w * 2.0 + k4w) * (h / 6.0);
+        q = (q + (k1q + k2q * 2.0 + k3q * 2.0 + k4q) * (h / 6.0)).normalize();
+        out.push(((k + 1) as f64 * h, w, q));
+    }
+    out
+}
+
+/// First time the body-frame spin component along `axis` changes sign (the tennis-racket flip).
+fn first_flip(series: impl Iterator<Item = (f64, f64)>) -> f64 {
+    let mut previous: Option<f64> = None;
+    for (t, v) in series {
+        if let Some(p) = previous
+            && p.signum() != v.signum()
+        {
+            return t;
+        }
+        previous = Some(v);
+    }
+    f64::NAN
+}
+
+/// Torque-free spin near the intermediate principal axis, no gravity, no ground.
+fn spin(s: Shape, axis: DVec3, settings: Settings) -> Measured {
+    let settings = Settings {
+        gravity: DVec3::ZERO,
+        ..settings
+    };
+    let q0 = DQuat::IDENTITY;
+    let mut b = body_on(&s, 0, 10.0, false, DVec3::new(0.0, 1000.0, 0.0), q0);
+    let w0 = 2.0 * axis + DVec3::new(0.02, 0.02, 0.02);
+    b.angular_velocity = w0;
+    let inertia = b.inertia;
+    let l0 = b.world_inertia() * w0;
+    let e0 = 0.5 * w0.dot(l0);
+    let duration = Scenario::SpinEllipsoid.duration();
+    let mut world = single(s, b, settings);
+    let (mut l_err, mut e_err): (f64, f64) = (0.0, 0.0);
+    let mut spin_axis = Vec::new();
+    let wall = simulate(&mut world, duration, |w, _| {
+        let b = &w.bodies[0];
+        let l = b.world_inertia() * b.angular_velocity;
+        l_err = l_err.max((l - l0).length() / l0.length());
+        e_err = e_err.max((0.5 * b.angular_velocity.dot(l) - e0).abs() / e0);
+        spin_axis.push((
+            w.time,
+            (b.orientation.inverse() * b.angular_velocity).dot(axis),
+        ));
+    });
+    let reference = torque_free_reference(inertia, w0, q0, duration, 1e-4);
+    let reference_flip = first_flip(reference.iter().map(|(t, w, _)| (*t, w.dot(axis))));
+    let flip = first_flip(spin_axis.into_iter());
+    let (_, w_ref, q_ref) = reference.last().copied().unwrap();
+    let b = &world.bodies[0];
+    let w_world_ref = q_ref * w_ref;
+    let w_error = (b.angular_velocity - w_world_ref).length() / w0.length();
+    let flip_error = if reference_flip.is_nan() {
+        f64::NAN
+    } else if flip.is_nan() {
+        duration
+    } else {
+        (flip - reference_flip).abs()
+    };
+    let finite = world.all_finite();
+    (
+        wall,
+        vec![
+            m("angular_momentum_error", l_err),
+            m("energy_error", e_err),
+            m("final_angular_velocity_error", w_error),
+            m("flip_time_error", flip_error),
+            m("reference_flip_time", reference_flip),
+        ],
+        finite,
+    )
+}
+
+/// An octahedron dropped tip-down (the lowest vertex straight below the centre of mass, so no
+/// torque): successive apex heights should fall by e^2 per bounce.
+fn bounce(settings: Settings) -> Measured {
+    let h = 2.0;
+    let s = shape(&assets::octahedron(DVec3::splat(h)));
+    let b = body_on(
+        &s,
+        0,
+        100.0,
+        false,
+        DVec3::new(0.0, 20.0 + h, 0.0),
+        DQuat::IDENTITY,
+    );
+    let e = settings.restitution;
+    let mut world = single(s, b, settings);
+    let mut heights = vec![20.0];
+    let (mut previous_vy, mut max_y) = (0.0, 0.0f64);
+    let wall = simulate(&mut world, Scenario::Bounce.duration(), |w, _| {
+        let b = &w.bodies[0];
+        max_y = max_y.max(b.position.y - h);
+        // An apex: upward velocity turned downward.
+        if previous_vy > 0.0 && b.linear_velocity.y <= 0.0 {
+            heights.push(max_y);
+        }
+        // A bounce: the ascent starts, its apex is measured from here.
+        if previous_vy <= 0.0 && b.linear_velocity.y > 0.0 {
+            max_y = 0.0;
+        }
+        previous_vy = b.linear_velocity.y;
+    });
+    let bounces = heights.len().min(4);
+    let mut error: f64 = 0.0;
+    for k in 1..bounces {
+        if heights[k - 1] > 0.05 {
+            error = error.max((heights[k] / heights[k - 1] - e * e).abs());
+        }
+    }
+    if bounces < 2 {
+        error = 1.0;
+    }
+    let finite = world.all_finite();
+    (
+        wall,
+        vec![
+            m("apex_ratio_error", error),
+            m("apexes_seen", heights.len() as f64 - 1.0),
+        ],
+        finite,
+    )
+}
+
+/// A box hanging from a fixed box by a rigid distance constraint (lower = upper = 1) attached at
+/// its centre of mass: a simple pendulum of length L. Period against the closed form
+/// `2 pi sqrt(L/g) (1 + theta0^2/16 + 11 theta0^4/3072)`, amplitude against its initial value.
+fn pendulum(settings: Settings) -> Measured {
+    let s = shape(&assets::cuboid(DVec3::new(2.0, 1.0, 1.5)));
+    let centre = s.rest_vertices.len() - 1; // the fan's apex: the box's centre of mass
+    assert!(s.rest_vertices[centre].length() < 1e-12);
+    let (length, theta0): (f64, f64) = (20.0, 0.2);
+    let pivot = DVec3::new(0.0, 60.0, 0.0);
+    let anchor = body_on(&s, 0, 100.0, true, pivot, DQuat::IDENTITY);
+    let bob = body_on(
+        &s,
+        0,
+        100.0,
+        false,
+        pivot + length * DVec3::new(theta0.sin(), -theta0.cos(), 0.0),
+        DQuat::IDENTITY,
+    );
+    let constraints = [false, true]
+        .into_iter()
+        .map(|is_upper| DistanceConstraint {
+            body1: 0,
+            body2: 1,
+            vertex1: centre,
+            vertex2: centre,
+            local1: DVec3::ZERO,
+            local2: DVec3::ZERO,
+            reference: length,
+            is_upper,
+            rest_length: length,
+        })
+        .collect();
+    let g = settings.gravity.length();
+    let mut world = World::new(
+        vec![s],
+        vec!["box".into()],
+        vec![anchor, bob],
+        constraints,
+        settings,
+    );
+    let mut crossings = Vec::new();
+    let mut previous: Option<(f64, f64)> = None;
+    let mut amplitude_late: f64 = 0.0;
+    let duration = Scenario::Pendulum.duration();
+    let wall = simulate(&mut world, duration, |w, _| {
+        let d = w.bodies[1].position - pivot;
+        let theta = d.x.atan2(-d.y);
+        if let Some((t0, th0)) = previous
+            && th0.signum() != theta.signum()
+            && th0 != 0.0
+        {
+            crossings.push(t0 + (w.time - t0) * th0 / (th0 - theta));
+        }
+        if w.time > duration - 3.0 {
+            amplitude_late = amplitude_late.max(theta.abs());
+        }
+        previous = Some((w.time, theta));
+    });
+    let closed = 2.0
+        * std::f64::consts::PI
+        * (length / g).sqrt()
+        * (1.0 + theta0.powi(2) / 16.0 + 11.0 * theta0.powi(4) / 3072.0);
+    let period = if crossings.len() >= 3 {
+        2.0 * (crossings[crossings.len() - 1] - crossings[0]) / (crossings.len() - 1) as f64
+    } else {
+        f64::INFINITY
+    };
+    let finite = world.all_finite();
+    (
+        wall,
+        vec![
+            m("period_error", ((period - closed) / closed).abs()),
+            m(
+                "amplitude_error",
+                ((amplitude_late - theta0) / theta0).abs(),
+            ),
+            m("period", period),
+            m("closed_form_period", closed),
+        ],
+        finite,
+    )
+}
+
+/// Boxes of very different densities stacked exactly touching, at rest: they should stay put.
+fn tower(settings: Settings) -> Measured {
+    let s = shape(&assets::cuboid(DVec3::new(6.0, 3.0, 4.0)));
+    let densities = [3000.0, 1000.0, 200.0, 50.0];
+    let bodies: Vec<RigidBody> = densities
+        .iter()
+        .enumerate()
+        .map(|(k, &rho)| {
+            body_on(
+                &s,
+                0,
+                rho,
+                false,
+                DVec3::new(0.0, 3.0 + 6.0 * k as f64, 0.0),
+                DQuat::IDENTITY,
+            )
+        })
+        .collect();
+    let start: Vec<DVec3> = bodies.iter().map(|b| b.position).collect();
+    let mut world = World::new(vec![s], vec!["box".into()], bodies, Vec::new(), settings);
+    let duration = Scenario::Tower.duration();
+    let (mut drift, mut jitter, mut tilt): (f64, f64, f64) = (0.0, 0.0, 0.0);
+    let wall = simulate(&mut world, duration, |w, _| {
+        for (b, x0) in w.bodies.iter().zip(&start) {
+            drift = drift.max((b.position - *x0).length());
+            tilt = tilt.max(b.orientation.angle_between(DQuat::IDENTITY));
+            if w.time > duration / 2.0 {
+                jitter = jitter.max(b.linear_velocity.length() + 6.0 * b.angular_velocity.length());
+            }
+        }
+    });
+    let finite = world.all_finite();
+    (
+        wall,
+        vec![
+            m("drift", drift),
+            m("jitter_speed", jitter),
+            m("max_tilt_rad", tilt),
+        ],
+        finite,
+    )
+}
+
+/// The built-in two-chain scene: worst constraint violation relative to the rest length.
+fn chains(settings: Settings) -> Measured {
+    let mut world = crate::scene::load("two-chain", &crate::ConstraintsChoice::Auto, settings)
+        .expect("built-in scene");
+    let (mut worst, mut visits, mut steps, mut budget_hits) = (0.0f64, 0usize, 0usize, 0usize);
+    let wall = simulate(&mut world, Scenario::Chains.duration(), |w, stats| {
+        for c in &w.constraints {
+            worst = worst.max(c.violation(&w.bodies) / c.rest_length);
+        }
+        visits += stats.constraint_visits;
+        steps += 1;
+        budget_hits += stats.budget_hit as usize;
+    });
+    let finite = world.all_finite();
+    (
+        wall,
+        vec![
+            m("worst_relative_violation", worst),
+            m("visits_per_step", visits as f64 / steps.max(1) as f64),
+            m("budget_hits", budget_hits as f64),
+        ],
+        finite,
+    )
+}
+
+/// The built-in mixed scene with e = 1: total energy should stay what it was.
+fn mixed_energy(settings: Settings) -> Measured {
+    let settings = Settings {
+        restitution: 1.0,
+        ..settings
+    };
+    let mut world = crate::scene::load("mixed", &crate::ConstraintsChoice::None, settings)
+        .expect("built-in scene");
+    let e0 = world.total_energy();
+    let mut worst: f64 = 0.0;
+    let wall = simulate(&mut world, Scenario::MixedEnergy.duration(), |w, _| {
+        worst = worst.max((w.total_energy() - e0).abs() / e0.abs());
+    });
+    let finite = world.all_finite();
+    (
+        wall,
+        vec![
+            m("energy_drift", worst),
+            m("final_energy_ratio", world.total_energy() / e0),
+        ],
+        finite,
+    )
+}

@@ -1,0 +1,300 @@
+//! Generated scenes parameterised by size, for the scale benchmark and the stress tests.
+
+use crate::assets;
+use crate::body::RigidBody;
+use crate::constraint::DistanceConstraint;
+use crate::settings::Settings;
+use crate::shape::Shape;
+use crate::world::World;
+use glam::{DQuat, DVec3};
+
+/// A small deterministic generator (SplitMix64), so generated scenes are the same everywhere.
+#[derive(Debug, Clone)]
+pub struct Rng(u64);
+
+impl Rng {
+    pub fn new(seed: u64) -> Self {
+        Self(seed)
+    }
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in [0, 1).
+    pub fn unit(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.unit()
+    }
+    /// A rotation by a uniformly random axis and an angle up to `max_angle`.
+    pub fn tilt(&mut self, max_angle: f64) -> DQuat {
+        let axis = DVec3::new(
+            self.range(-1.0, 1.0),
+            self.range(-1.0, 1.0),
+            self.range(-1.0, 1.0),
+        );
+        let axis = if axis.length() > 1e-6 {
+            axis.normalize()
+        } else {
+            DVec3::X
+        };
+        DQuat::from_axis_angle(axis, self.range(-max_angle, max_angle))
+    }
+}
+
+fn shape_of(mesh: &crate::formats::TetMesh) -> Shape {
+    Shape::from_tet_mesh(mesh).expect("generated meshes are valid")
+}
+
+fn new_body(
+    shapes: &[Shape],
+    shape: usize,
+    density: f64,
+    fixed: bool,
+    position: DVec3,
+    orientation: DQuat,
+) -> RigidBody {
+    let s = &shapes[shape];
+    RigidBody::new(
+        shape,
+        s.volume,
+        s.unit_inertia,
+        density,
+        fixed,
+        position,
+        orientation,
+    )
+}
+
+/// `sparse-N`: boxes and tetrahedra alternating, density 100, small tilts, in a square grid of
+/// columns over x, z in [-200, 200] on 4 layers at y = 10, 73, 137, 200. No constraints.
+pub fn sparse(n: usize, settings: Settings) -> World {
+    let shapes = vec![
+        shape_of(&assets::cuboid(DVec3::new(6.0, 3.0, 4.0))),
+        shape_of(&assets::tetrahedron(6.0)),
+    ];
+    let layers = [10.0, 73.0, 137.0, 200.0];
+    let per_layer = n.div_ceil(layers.len()).max(1);
+    let side = (per_layer as f64).sqrt().ceil().max(1.0) as usize;
+    let spacing = if side > 1 {
+        400.0 / (side - 1) as f64
+    } else {
+        0.0
+    };
+    let mut rng = Rng::new(0x5EED_0001);
+    let mut bodies = Vec::with_capacity(n);
+    'outer: for &y in &layers {
+        for i in 0..side {
+            for k in 0..side {
+                if bodies.len() == n || (i * side + k) >= per_layer {
+                    if bodies.len() == n {
+                        break 'outer;
+                    }
+                    continue;
+                }
+                let shape = bodies.len() % 2;
+                let position =
+                    DVec3::new(-200.0 + spacing * i as f64, y, -200.0 + spacing * k as f64);
+                bodies.push(new_body(
+                    &shapes,
+                    shape,
+                    100.0,
+                    false,
+                    position,
+                    rng.tilt(0.3),
+                ));
+            }
+        }
+    }
+    World::new(
+        shapes,
+        vec!["box".into(), "tetrahedron".into()],
+        bodies,
+        Vec::new(),
+        settings,
+    )
+}
+
+/// `pile-N`: N mixed bodies dropped close together into a square bin of four fixed walls, so
+/// contacts dominate.
+pub fn pile(n: usize, settings: Settings) -> World {
+    let meshes = [
+        assets::cuboid(DVec3::new(3.0, 1.5, 2.0)),
+        assets::tetrahedron(3.0),
+        assets::octahedron(DVec3::splat(2.5)),
+    ];
+    let mut shapes: Vec<Shape> = meshes.iter().map(shape_of).collect();
+    let per_side = ((n as f64 / 8.0).sqrt().ceil() as usize).max(2);
+    let pitch = 6.5;
+    let half = pitch * per_side as f64 / 2.0 + 2.0;
+    let wall_height = 40.0;
+    shapes.push(shape_of(&assets::cuboid(DVec3::new(
+        half + 2.0,
+        wall_height / 2.0,
+        1.0,
+    ))));
+    let wall = shapes.len() - 1;
+    let mut bodies = Vec::with_capacity(n + 4);
+    for (position, angle) in [
+        (DVec3::new(0.0, wall_height / 2.0, half + 1.0), 0.0),
+        (DVec3::new(0.0, wall_height / 2.0, -half - 1.0), 0.0),
+        (
+            DVec3::new(half + 1.0, wall_height / 2.0, 0.0),
+            std::f64::consts::FRAC_PI_2,
+        ),
+        (
+            DVec3::new(-half - 1.0, wall_height / 2.0, 0.0),
+            std::f64::consts::FRAC_PI_2,
+        ),
+    ] {
+        bodies.push(new_body(
+            &shapes,
+            wall,
+            1000.0,
+            true,
+            position,
+            DQuat::from_rotation_y(angle),
+        ));
+    }
+    let mut rng = Rng::new(0x5EED_0002);
+    let mut k = 0;
+    'fill: for layer in 0.. {
+        for i in 0..per_side {
+            for j in 0..per_side {
+                if k == n {
+                    break 'fill;
+                }
+                let x = -half + 2.0 + pitch * (i as f64 + 0.5) + rng.range(-0.3, 0.3);
+                let z = -half + 2.0 + pitch * (j as f64 + 0.5) + rng.range(-0.3, 0.3);
+                let y = 5.0 + 6.5 * layer as f64;
+                bodies.push(new_body(
+                    &shapes,
+                    k % 3,
+                    100.0,
+                    false,
+                    DVec3::new(x, y, z),
+                    rng.tilt(0.5),
+                ));
+                k += 1;
+            }
+        }
+    }
+    let names = vec![
+        "box".into(),
+        "tetrahedron".into(),
+        "octahedron".into(),
+        "wall".into(),
+    ];
+    World::new(shapes, names, bodies, Vec::new(), settings)
+}
+
+/// `chain-N`: N/10 chains of 10 boxes, each hanging from a fixed first box, links of bounds
+/// 0.9..1.1 between a bottom corner and the next box's top corner (as the coursework's chains).
+pub fn chain(n: usize, settings: Settings) -> World {
+    let shapes = vec![shape_of(&assets::cuboid(DVec3::new(2.0, 1.0, 1.5)))];
+    let chains = (n / 10).max(1);
+    let side = (chains as f64).sqrt().ceil() as usize;
+    let (bottom, top) = (shapes[0].rest_vertices[0], shapes[0].rest_vertices[2]); // (-,-,-) and (-,+,-)
+    let mut bodies = Vec::with_capacity(chains * 10);
+    let mut constraints = Vec::new();
+    let mut rng = Rng::new(0x5EED_0003);
+    for c in 0..chains {
+        let (x, z) = (12.0 * (c % side) as f64, 12.0 * (c / side) as f64);
+        // The chain starts tilted so that it swings.
+        let lean = rng.range(-1.0, 1.0);
+        for k in 0..10 {
+            let position = DVec3::new(x + lean * k as f64, 80.0 - 4.0 * k as f64, z);
+            bodies.push(new_body(
+                &shapes,
+                0,
+                500.0,
+                k == 0,
+                position,
+                DQuat::IDENTITY,
+            ));
+            if k > 0 {
+                let (i, j) = (bodies.len() - 2, bodies.len() - 1);
+                let rest_length =
+                    (bodies[i].world_point(bottom) - bodies[j].world_point(top)).length();
+                for (bound, is_upper) in [(0.9, false), (1.1, true)] {
+                    constraints.push(DistanceConstraint {
+                        body1: i,
+                        body2: j,
+                        vertex1: 0,
+                        vertex2: 2,
+                        local1: bottom,
+                        local2: top,
+                        reference: bound * rest_length,
+                        is_upper,
+                        rest_length,
+                    });
+                }
+            }
+        }
+    }
+    World::new(shapes, vec!["box".into()], bodies, constraints, settings)
+}
+
+/// Generated scene by name: `sparse`, `pile` or `chain`.
+pub fn by_name(name: &str, n: usize, settings: Settings) -> Option<World> {
+    match name {
+        "sparse" => Some(sparse(n, settings)),
+        "pile" => Some(pile(n, settings)),
+        "chain" => Some(chain(n, settings)),
+        _ => None,
+    }
+}
+
+/// A random scene of `n` bodies from tumble's meshes for stress tests: densities spanning 1:1000,
+/// speeds up to `max_speed`, random orientations and spins, spread over a volume above the
+/// ground so that many collide. Deterministic for a seed.
+pub fn random(seed: u64, n: usize, max_speed: f64, settings: Settings) -> World {
+    let shapes: Vec<Shape> = assets::all_meshes()
+        .iter()
+        .map(|(_, m)| shape_of(m))
+        .collect();
+    let names = assets::all_meshes()
+        .iter()
+        .map(|(name, _)| name.to_string())
+        .collect();
+    let mut rng = Rng::new(seed);
+    let extent = 8.0 * (n as f64).cbrt() * 3.0;
+    let bodies = (0..n)
+        .map(|k| {
+            let shape = (rng.next_u64() % shapes.len() as u64) as usize;
+            let density = 10f64.powf(rng.range(0.0, 3.0));
+            let position = DVec3::new(
+                rng.range(-extent, extent),
+                rng.range(12.0, 12.0 + 2.0 * extent),
+                rng.range(-extent, extent),
+            );
+            let mut b = new_body(
+                &shapes,
+                shape,
+                density,
+                k % 17 == 16,
+                position,
+                rng.tilt(std::f64::consts::PI),
+            );
+            if !b.fixed {
+                let dir = DVec3::new(
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                );
+                b.linear_velocity = dir.normalize_or_zero() * rng.range(0.0, max_speed);
+                b.angular_velocity = DVec3::new(
+                    rng.range(-3.0, 3.0),
+                    rng.range(-3.0, 3.0),
+                    rng.range(-3.0, 3.0),
+                );
+            }
+            b
+        })
+        .collect();
+    World::new(shapes, names, bodies, Vec::new(), settings)
+}

@@ -1,0 +1,372 @@
+//! Every kind of bad input is an error naming the file, the line and the problem; none panics.
+mod common;
+
+use std::path::PathBuf;
+use tumble::{ConstraintsChoice, LoadError, Settings};
+
+struct Dir(PathBuf);
+
+impl Dir {
+    fn new(name: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("tumble-bad-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        Dir(dir)
+    }
+    fn write(&self, name: &str, text: &str) -> PathBuf {
+        let p = self.0.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+}
+
+impl Drop for Dir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+const TET: &str = "MeshVersionFormatted 1\nDimension 3\nVertices\n4\n0 0 0 0\n1 0 0 0\n0 1 0 0\n0 0 1 0\nTetrahedra\n1\n1 2 3 4 0\nEnd\n";
+
+fn load(dir: &Dir, scene: &str, constraints: Option<&str>) -> Result<tumble::World, LoadError> {
+    let path = dir.write("s-scene.txt", scene);
+    if let Some(c) = constraints {
+        dir.write("s-constraints.txt", c);
+    }
+    tumble::scene::load_file(&path, &ConstraintsChoice::Auto, Settings::default())
+}
+
+fn expect(err: Result<tumble::World, LoadError>, file: &str, line: Option<usize>, words: &str) {
+    let err = match err {
+        Ok(_) => panic!("expected an error mentioning '{words}'"),
+        Err(e) => e,
+    };
+    assert!(
+        err.file.ends_with(file),
+        "error names {} not {file}: {err}",
+        err.file.display()
+    );
+    assert_eq!(err.line, line, "wrong line in: {err}");
+    assert!(
+        err.message.contains(words),
+        "message '{}' lacks '{words}'",
+        err.message
+    );
+    // Display gives file:line: message.
+    let shown = err.to_string();
+    assert!(shown.contains(file) && shown.contains(&err.message));
+}
+
+#[test]
+fn missing_files() {
+    let dir = Dir::new("missing");
+    expect(
+        tumble::scene::load_file(
+            &dir.0.join("nope.txt"),
+            &ConstraintsChoice::Auto,
+            Settings::default(),
+        ),
+        "nope.txt",
+        None,
+        "cannot open",
+    );
+    expect(
+        load(&dir, "1\nabsent.mesh 1 0 0 0 0 1 0 0 0\n", None),
+        "s-scene.txt",
+        Some(2),
+        "not found",
+    );
+    expect(
+        load(&dir, "1\nabsent.obj 1 0 0 0 0 1 0 0 0\n", None),
+        "s-scene.txt",
+        Some(2),
+        "neither a .mesh nor an .off",
+    );
+    dir.write("t.mesh", TET);
+    let scene = dir.write("x-scene.txt", "1\nt.mesh 1 0 0 0 0 1 0 0 0\n");
+    expect(
+        tumble::scene::load_file(
+            &scene,
+            &ConstraintsChoice::File(dir.0.join("gone.txt")),
+            Settings::default(),
+        ),
+        "gone.txt",
+        None,
+        "cannot open",
+    );
+    expect(
+        tumble::scene::load(
+            "no-such-scene",
+            &ConstraintsChoice::Auto,
+            Settings::default(),
+        )
+        .map(|_| unreachable!()),
+        "no-such-scene",
+        None,
+        "not a built-in scene",
+    );
+}
+
+#[test]
+fn scene_file_errors() {
+    let dir = Dir::new("scene");
+    dir.write("t.mesh", TET);
+    expect(
+        load(&dir, "2\nt.mesh 1 0 0 0 0 1 0 0 0\n", None),
+        "s-scene.txt",
+        Some(1),
+        "says 2",
+    );
+    expect(
+        load(
+            &dir,
+            "1\nt.mesh 1 0 0 0 0 1 0 0 0\nt.mesh 1 0 0 0 0 1 0 0 0\n",
+            None,
+        ),
+        "s-scene.txt",
+        Some(3),
+        "more records",
+    );
+    expect(
+        load(&dir, "1\nt.mesh 1 0 0 abc 0 1 0 0 0\n", None),
+        "s-scene.txt",
+        Some(2),
+        "found 'abc'",
+    );
+    expect(
+        load(&dir, "1\nt.mesh 1 0 0 NaN 0 1 0 0 0\n", None),
+        "s-scene.txt",
+        Some(2),
+        "finite",
+    );
+    expect(
+        load(&dir, "1\nt.mesh 1 0 0 0 inf 1 0 0 0\n", None),
+        "s-scene.txt",
+        Some(2),
+        "finite",
+    );
+    expect(
+        load(&dir, "1\nt.mesh 0 0 0 0 0 1 0 0 0\n", None),
+        "s-scene.txt",
+        Some(2),
+        "positive density",
+    );
+    expect(
+        load(&dir, "1\nt.mesh -5 0 0 0 0 1 0 0 0\n", None),
+        "s-scene.txt",
+        Some(2),
+        "positive density",
+    );
+    expect(
+        load(&dir, "1\nt.mesh 1 0 0 0 0\n0 0 0 0\n", None),
+        "s-scene.txt",
+        Some(3),
+        "zero",
+    );
+    expect(
+        load(&dir, "1\nt.mesh 1 2 0 0 0 1 0 0 0\n", None),
+        "s-scene.txt",
+        Some(2),
+        "0 or 1",
+    );
+    expect(
+        load(&dir, "x\n", None),
+        "s-scene.txt",
+        Some(1),
+        "number of bodies",
+    );
+    expect(
+        load(&dir, "4000000000\nt.mesh 1 0 0 0 0 1 0 0 0\n", None),
+        "s-scene.txt",
+        Some(1),
+        "limit",
+    );
+    // A fixed body may have any density, even zero.
+    assert!(load(&dir, "1\nt.mesh 0 1 0 0 0 1 0 0 0\n", None).is_ok());
+}
+
+#[test]
+fn mesh_file_errors() {
+    let dir = Dir::new("mesh");
+    let scene = "1\nm.mesh 1 0 0 0 0 1 0 0 0\n";
+    let mesh = |text: &str| {
+        dir.write("m.mesh", text);
+        load(&dir, scene, None)
+    };
+    expect(
+        mesh(&TET.replace("1 2 3 4 0", "1 2 3 9 0")),
+        "m.mesh",
+        Some(11),
+        "only 4 vertices",
+    );
+    expect(
+        mesh(&TET.replace("1 2 3 4 0", "0 2 3 4 0")),
+        "m.mesh",
+        Some(11),
+        "start at 1",
+    );
+    expect(
+        mesh(&TET.replace("1 0 0 0\n0 1", "1 x 0 0\n0 1")),
+        "m.mesh",
+        Some(6),
+        "found 'x'",
+    );
+    expect(
+        mesh(&TET.replace("1 0 0 0\n0 1", "1 nan 0 0\n0 1")),
+        "m.mesh",
+        Some(6),
+        "finite",
+    );
+    expect(
+        mesh(&TET.replace("Vertices\n4", "Vertices\n40")),
+        "m.mesh",
+        Some(4),
+        "says 40",
+    );
+    expect(
+        mesh(&TET.replace("Vertices\n4", "Vertices\n4000000000")),
+        "m.mesh",
+        Some(4),
+        "limit",
+    );
+    expect(
+        mesh(&TET.replace("Tetrahedra\n1", "Tetrahedra\n3")),
+        "m.mesh",
+        Some(10),
+        "says 3",
+    );
+    expect(
+        mesh(&TET.replace("End", "Bogus 1")),
+        "m.mesh",
+        Some(12),
+        "unknown section",
+    );
+    // Degenerate: all four vertices coplanar.
+    expect(
+        mesh(&TET.replace("0 0 1 0", "1 1 0 0")),
+        "m.mesh",
+        None,
+        "zero volume",
+    );
+    // Inverted: tetrahedron wound the wrong way.
+    expect(
+        mesh(&TET.replace("1 2 3 4 0", "2 1 3 4 0")),
+        "m.mesh",
+        None,
+        "negative volume",
+    );
+    expect(
+        mesh("MeshVersionFormatted 1\nDimension 3\nVertices\n0\nEnd\n"),
+        "m.mesh",
+        None,
+        "no vertices",
+    );
+    // CRLF, blank lines and an Edges section are fine.
+    assert!(
+        mesh(
+            &TET.replace('\n', "\r\n\r\n")
+                .replace("End", "Edges\r\n1\r\n1 2 0\r\nEnd")
+        )
+        .is_ok()
+    );
+    let off = |text: &str| {
+        dir.write("m.off", text);
+        load(&dir, "1\nm.off 1 0 0 0 0 1 0 0 0\n", None)
+    };
+    expect(
+        off("OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 7\n"),
+        "m.off",
+        Some(7),
+        "only 4 vertices",
+    );
+    expect(off("PLY\n"), "m.off", Some(1), "'OFF' header");
+    expect(
+        off("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"),
+        "m.off",
+        None,
+        "encloses no volume",
+    );
+}
+
+#[test]
+fn constraint_file_errors() {
+    let dir = Dir::new("constraints");
+    dir.write("t.mesh", TET);
+    let scene = "2\nt.mesh 1 0 0 0 0 1 0 0 0\nt.mesh 1 0 3 0 0 1 0 0 0\n";
+    expect(
+        load(&dir, scene, Some("1\n0 0 2 0 1 1\n")),
+        "s-constraints.txt",
+        Some(2),
+        "body index 2 is out of range",
+    );
+    expect(
+        load(&dir, scene, Some("1\n0 0 1 4 1 1\n")),
+        "s-constraints.txt",
+        Some(2),
+        "vertex index 4 is out of range",
+    );
+    expect(
+        load(&dir, scene, Some("2\n0 0 1 0 1 1\n")),
+        "s-constraints.txt",
+        Some(1),
+        "says 2",
+    );
+    expect(
+        load(&dir, scene, Some("1\n0 0 1 0 1 x\n")),
+        "s-constraints.txt",
+        Some(2),
+        "found 'x'",
+    );
+    expect(
+        load(&dir, scene, Some("1\n0 0 1 0 1.2 1.1\n")),
+        "s-constraints.txt",
+        Some(2),
+        "lower <= upper",
+    );
+    expect(
+        load(&dir, scene, Some("1\n0 0 0 1 1 1\n")),
+        "s-constraints.txt",
+        Some(2),
+        "two different bodies",
+    );
+    expect(
+        load(&dir, scene, Some("1\n0 0 1 0 inf 1\n")),
+        "s-constraints.txt",
+        Some(2),
+        "finite",
+    );
+    // Between two fixed bodies: reported at load and ignored.
+    let fixed = "2\nt.mesh 1 1 0 0 0 1 0 0 0\nt.mesh 1 1 3 0 0 1 0 0 0\n";
+    let world = load(&dir, fixed, Some("1\n0 0 1 0 1 1\n")).unwrap();
+    assert!(world.constraints.is_empty());
+    assert!(
+        world
+            .warnings
+            .iter()
+            .any(|w| w.contains("two fixed bodies"))
+    );
+    // A zero-length constraint (same point) gets no correction rather than NaN.
+    let same = "2\nt.mesh 1 0 0 0 0 1 0 0 0\nt.mesh 1 0 0 0 0 1 0 0 0\n";
+    let mut world = load(&dir, same, Some("1\n0 0 1 0 1 1\n")).unwrap();
+    for _ in 0..50 {
+        world.step();
+    }
+    assert!(world.all_finite());
+}
+
+#[test]
+fn cli_reports_errors_and_exits_nonzero() {
+    let dir = Dir::new("cli");
+    let path = dir.write("bad-scene.txt", "1\nt.mesh 1 0 0 0\n");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))
+        .args(["run"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("bad-scene.txt:1:") && stderr.contains("says 1"),
+        "{stderr}"
+    );
+}

@@ -1,0 +1,374 @@
+//! Integration, contacts and constraints against closed forms and conservation laws.
+mod common;
+
+use common::*;
+use glam::{DQuat, DVec3};
+use tumble::assets;
+use tumble::constraint::{DistanceConstraint, resolve_position, resolve_velocity};
+use tumble::contact::{Contact, ContactParams, resolve_contact};
+use tumble::integrate::integrate_body;
+use tumble::{RigidBody, Settings, World};
+
+fn params(e: f64) -> ContactParams {
+    ContactParams {
+        restitution: e,
+        skip_separating: false,
+        restitution_threshold: 0.0,
+    }
+}
+
+fn ellipsoid_body(position: DVec3) -> (tumble::Shape, RigidBody) {
+    let s = shape(&assets::ellipsoid(DVec3::new(3.0, 2.0, 1.0), 8, 16));
+    let b = body(
+        &s,
+        0,
+        7.0,
+        false,
+        position,
+        DQuat::from_rotation_z(0.3) * DQuat::from_rotation_x(0.2),
+    );
+    (s, b)
+}
+
+#[test]
+fn free_fall_matches_semi_implicit_closed_form() {
+    let (_, mut b) = ellipsoid_body(DVec3::new(1.0, 50.0, -2.0));
+    let v0 = DVec3::new(3.0, 4.0, -1.0);
+    b.linear_velocity = v0;
+    let settings = Settings::default();
+    let (dt, g, x0) = (settings.time_step, settings.gravity, b.position);
+    for n in 1..=200u32 {
+        integrate_body(&mut b, &settings, dt);
+        let n = n as f64;
+        // v_n = v0 + n dt g;  x_n = x0 + n dt v0 + dt^2 g n(n+1)/2
+        assert_vec_close(b.linear_velocity, v0 + n * dt * g, 1e-13, "velocity");
+        assert_vec_close(
+            b.position,
+            x0 + n * dt * v0 + dt * dt * g * n * (n + 1.0) / 2.0,
+            1e-12,
+            "position",
+        );
+    }
+}
+
+#[test]
+fn orientation_update_is_rotation_by_w_dt_about_w() {
+    let (_, mut b) = ellipsoid_body(DVec3::ZERO);
+    let w = DVec3::new(0.4, -1.3, 2.2);
+    b.angular_velocity = w;
+    let q0 = b.orientation;
+    let settings = Settings {
+        gravity: DVec3::ZERO,
+        ..Settings::default()
+    };
+    let dt = 0.013;
+    integrate_body(&mut b, &settings, dt);
+    let expected = DQuat::from_axis_angle(w.normalize(), w.length() * dt) * q0;
+    assert!(
+        b.orientation.dot(expected).abs() > 1.0 - 1e-14,
+        "{:?} vs {expected:?}",
+        b.orientation
+    );
+    // The coursework scheme leaves world angular velocity untouched.
+    assert_eq!(b.angular_velocity, w);
+}
+
+#[test]
+fn fixed_bodies_are_not_integrated() {
+    let s = shape(&assets::cuboid(DVec3::ONE));
+    let mut b = body(&s, 0, 1.0, true, DVec3::new(0.0, 5.0, 0.0), DQuat::IDENTITY);
+    let before = b.clone();
+    let shapes = vec![s];
+    let mut world = World::new(
+        shapes,
+        vec!["box".into()],
+        vec![b.clone()],
+        vec![],
+        Settings::default(),
+    );
+    for _ in 0..100 {
+        world.step();
+    }
+    b = world.bodies[0].clone();
+    assert_eq!(b, before);
+}
+
+fn momentum(bodies: [&RigidBody; 2]) -> DVec3 {
+    bodies.iter().map(|b| b.mass * b.linear_velocity).sum()
+}
+
+fn angular_momentum_about(bodies: [&RigidBody; 2], p: DVec3) -> DVec3 {
+    bodies
+        .iter()
+        .map(|b| {
+            b.mass * (b.position - p).cross(b.linear_velocity)
+                + b.world_inertia() * b.angular_velocity
+        })
+        .sum()
+}
+
+fn kinetic_energy(bodies: [&RigidBody; 2]) -> f64 {
+    bodies
+        .iter()
+        .map(|b| {
+            0.5 * b.mass * b.linear_velocity.length_squared()
+                + 0.5
+                    * b.angular_velocity
+                        .dot(b.world_inertia() * b.angular_velocity)
+        })
+        .sum()
+}
+
+/// Two asymmetric bodies approaching each other, touching at an off-centre point.
+fn colliding_pair() -> (RigidBody, RigidBody, Contact) {
+    let (_, mut a) = ellipsoid_body(DVec3::new(0.0, 0.0, 0.0));
+    let s2 = shape(&assets::cuboid(DVec3::new(1.0, 2.0, 0.5)));
+    let mut b = body(
+        &s2,
+        1,
+        3.0,
+        false,
+        DVec3::new(3.5, 0.7, 0.2),
+        DQuat::from_rotation_y(0.4),
+    );
+    a.linear_velocity = DVec3::new(2.0, 0.3, 0.1);
+    a.angular_velocity = DVec3::new(0.5, -0.2, 1.0);
+    b.linear_velocity = DVec3::new(-1.0, 0.2, 0.0);
+    b.angular_velocity = DVec3::new(-0.3, 0.9, 0.1);
+    let contact = Contact {
+        depth: 0.05,
+        normal: DVec3::new(1.0, 0.2, -0.1).normalize(),
+        point2: DVec3::new(2.9, 0.6, 0.3),
+    };
+    (a, b, contact)
+}
+
+/// The contact point after the linear projection, where the impulse acts.
+fn impulse_point(a: &RigidBody, b: &RigidBody, c: &Contact) -> DVec3 {
+    let w2 = b.inverse_mass / (a.inverse_mass + b.inverse_mass);
+    c.point2 + w2 * c.depth * c.normal
+}
+
+#[test]
+fn collision_conserves_linear_and_angular_momentum() {
+    for e in [0.0, 0.5, 1.0] {
+        let (mut a, mut b, c) = colliding_pair();
+        let p = impulse_point(&a, &b, &c);
+        let p_before = momentum([&a, &b]);
+        // Angular momentum is compared at the projected positions, before and after the impulse.
+        let (mut a_proj, mut b_proj) = (a.clone(), b.clone());
+        let w1 = a.inverse_mass / (a.inverse_mass + b.inverse_mass);
+        a_proj.position -= w1 * c.depth * c.normal;
+        b_proj.position += (1.0 - w1) * c.depth * c.normal;
+        let l_before = angular_momentum_about([&a_proj, &b_proj], p);
+        resolve_contact(&mut a, &mut b, &c, &params(e));
+        assert_vec_close(a.position, a_proj.position, 1e-15, "projected position 1");
+        assert_vec_close(momentum([&a, &b]), p_before, 1e-13, "linear momentum");
+        assert_vec_close(
+            angular_momentum_about([&a, &b], p),
+            l_before,
+            1e-12,
+            "angular momentum about the contact point",
+        );
+    }
+}
+
+#[test]
+fn elastic_collision_conserves_energy_and_plastic_stops_normal_motion() {
+    let (mut a, mut b, c) = colliding_pair();
+    let ke = kinetic_energy([&a, &b]);
+    resolve_contact(&mut a, &mut b, &c, &params(1.0));
+    assert_close(
+        kinetic_energy([&a, &b]),
+        ke,
+        1e-13,
+        "kinetic energy with e = 1",
+    );
+
+    let (mut a, mut b, c) = colliding_pair();
+    resolve_contact(&mut a, &mut b, &c, &params(0.0));
+    let p = impulse_point(&a, &b, &c);
+    let u = a.point_velocity(p - a.position) - b.point_velocity(p - b.position);
+    assert!(
+        u.dot(c.normal).abs() < 1e-13,
+        "normal relative velocity {}",
+        u.dot(c.normal)
+    );
+}
+
+#[test]
+fn head_on_collision_detected_by_the_world_swaps_velocities() {
+    // Equal cubes moving head-on along x: e = 1 swaps their velocities, and energy is kept.
+    let s = shape(&assets::cuboid(DVec3::ONE));
+    let mut a = body(
+        &s,
+        0,
+        2.0,
+        false,
+        DVec3::new(-0.99, 10.0, 0.0),
+        DQuat::IDENTITY,
+    );
+    let mut b = body(
+        &s,
+        0,
+        2.0,
+        false,
+        DVec3::new(0.99, 10.0, 0.0),
+        DQuat::IDENTITY,
+    );
+    a.linear_velocity = DVec3::new(3.0, 0.0, 0.0);
+    b.linear_velocity = DVec3::new(-1.0, 0.0, 0.0);
+    let settings = Settings {
+        gravity: DVec3::ZERO,
+        time_step: 1e-3,
+        ..Settings::default()
+    };
+    let mut world = World::new(vec![s], vec!["box".into()], vec![a, b], vec![], settings);
+    let e0 = world.total_energy();
+    let stats = world.step();
+    assert_eq!(stats.contacts, 1);
+    let (va, vb) = (
+        world.bodies[0].linear_velocity,
+        world.bodies[1].linear_velocity,
+    );
+    assert!(
+        (va.x + 1.0).abs() < 1e-9 && (vb.x - 3.0).abs() < 1e-9,
+        "{va} {vb}"
+    );
+    assert_close(world.total_energy(), e0, 1e-9, "energy");
+    // Separated along the normal by the projection.
+    assert!(world.bodies[1].position.x - world.bodies[0].position.x >= 2.0 - 1e-12);
+}
+
+#[test]
+fn fixed_body_never_moves_in_contact() {
+    let (mut a, _, c) = colliding_pair();
+    let s2 = shape(&assets::cuboid(DVec3::new(1.0, 2.0, 0.5)));
+    let mut wall = body(
+        &s2,
+        1,
+        3.0,
+        true,
+        DVec3::new(3.5, 0.7, 0.2),
+        DQuat::from_rotation_y(0.4),
+    );
+    let before = wall.clone();
+    let a_before = a.clone();
+    resolve_contact(&mut a, &mut wall, &c, &params(0.8));
+    assert_eq!(wall, before);
+    // The movable body takes the whole projection.
+    assert_vec_close(
+        a.position,
+        a_before.position - c.depth * c.normal,
+        1e-15,
+        "movable body projected",
+    );
+}
+
+fn constraint_between(
+    b1: &RigidBody,
+    b2: &RigidBody,
+    local1: DVec3,
+    local2: DVec3,
+    bound: f64,
+    is_upper: bool,
+) -> DistanceConstraint {
+    let rest_length = (b1.world_point(local1) - b2.world_point(local2)).length();
+    DistanceConstraint {
+        body1: 0,
+        body2: 1,
+        vertex1: 0,
+        vertex2: 0,
+        local1,
+        local2,
+        reference: bound * rest_length,
+        is_upper,
+        rest_length,
+    }
+}
+
+#[test]
+fn position_projection_lands_on_the_violated_bound() {
+    for is_upper in [false, true] {
+        let (_, mut a) = ellipsoid_body(DVec3::new(0.0, 0.0, 0.0));
+        let (_, mut b) = ellipsoid_body(DVec3::new(5.0, 1.0, -1.0));
+        b.density *= 1.0;
+        let (l1, l2) = (DVec3::new(1.0, 0.5, 0.2), DVec3::new(-0.5, 0.3, 0.1));
+        let c = constraint_between(&a, &b, l1, l2, 1.0, is_upper);
+        // Violate it: stretch for the upper bound, squeeze for the lower.
+        b.position += if is_upper {
+            DVec3::new(2.0, 0.5, 0.0)
+        } else {
+            DVec3::new(-2.0, 0.0, 0.3)
+        };
+        let p_before = a.mass * a.position + b.mass * b.position;
+        assert!(resolve_position(&c, &mut a, &mut b, 1e-3));
+        let d = (a.world_point(l1) - b.world_point(l2)).length();
+        assert!(
+            (d - c.reference).abs() < 1e-12,
+            "distance {d} vs bound {}",
+            c.reference
+        );
+        // Mass-weighted projection keeps the centre of mass of the pair.
+        assert_vec_close(
+            a.mass * a.position + b.mass * b.position,
+            p_before,
+            1e-13,
+            "system centre of mass",
+        );
+        // Now valid: nothing more to do.
+        assert!(!resolve_position(&c, &mut a, &mut b, 1e-3));
+    }
+}
+
+#[test]
+fn position_projection_moves_only_the_movable_body() {
+    let s = shape(&assets::cuboid(DVec3::ONE));
+    let anchor = body(
+        &s,
+        0,
+        1.0,
+        true,
+        DVec3::new(0.0, 10.0, 0.0),
+        DQuat::IDENTITY,
+    );
+    let mut hanging = body(
+        &s,
+        0,
+        1.0,
+        false,
+        DVec3::new(0.0, 5.0, 0.0),
+        DQuat::IDENTITY,
+    );
+    let c = constraint_between(
+        &anchor,
+        &hanging,
+        DVec3::new(0.0, -1.0, 0.0),
+        DVec3::new(0.0, 1.0, 0.0),
+        1.0,
+        true,
+    );
+    hanging.position.y -= 0.5;
+    let mut anchor2 = anchor.clone();
+    assert!(resolve_position(&c, &mut anchor2, &mut hanging, 1e-3));
+    assert_eq!(anchor2, anchor);
+    assert!((hanging.position.y - 5.0).abs() < 1e-12);
+}
+
+#[test]
+fn velocity_projection_zeroes_jv_and_keeps_linear_momentum() {
+    let (_, mut a) = ellipsoid_body(DVec3::new(0.0, 0.0, 0.0));
+    let (_, mut b) = ellipsoid_body(DVec3::new(5.0, 1.0, -1.0));
+    b.angular_velocity = DVec3::new(0.2, 1.0, -0.4);
+    a.linear_velocity = DVec3::new(1.0, -2.0, 0.5);
+    a.angular_velocity = DVec3::new(-0.6, 0.1, 0.3);
+    let (l1, l2) = (DVec3::new(1.0, 0.5, 0.2), DVec3::new(-0.5, 0.3, 0.1));
+    let c = constraint_between(&a, &b, l1, l2, 1.0, true);
+    let p = momentum([&a, &b]);
+    assert!(resolve_velocity(&c, &mut a, &mut b, 1e-6));
+    let (p1, p2) = c.points(&[a.clone(), b.clone()]);
+    let n = (p1 - p2).normalize();
+    let jv = n.dot(a.point_velocity(p1 - a.position)) - n.dot(b.point_velocity(p2 - b.position));
+    assert!(jv.abs() < 1e-13, "J.v = {jv}");
+    assert_vec_close(momentum([&a, &b]), p, 1e-13, "linear momentum");
+}

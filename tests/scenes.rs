@@ -1,0 +1,125 @@
+//! Every coursework scene and every built-in scene loads and runs; meshes face outward; the
+//! shipped assets are exactly what tumble generates.
+mod common;
+
+use common::*;
+use std::path::Path;
+use tumble::formats::{parse_medit, parse_off};
+use tumble::{ConstraintsChoice, Settings, World};
+
+fn run_finite(world: &mut World, steps: usize, what: &str) {
+    for _ in 0..steps {
+        let stats = world.step();
+        assert!(
+            stats.quarantined.is_empty(),
+            "{what}: bodies {:?} went non-finite",
+            stats.quarantined
+        );
+    }
+    assert!(world.all_finite(), "{what}: non-finite state");
+    assert!(world.total_energy().is_finite(), "{what}: energy");
+}
+
+#[test]
+fn every_coursework_scene_loads_and_runs_500_steps() {
+    let Some(dir) = coursework_dir() else { return };
+    let mut scenes: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.to_string_lossy().ends_with("-scene.txt"))
+        .collect();
+    scenes.sort();
+    assert!(
+        scenes.len() >= 10,
+        "expected the coursework's scenes in {}",
+        dir.display()
+    );
+    for scene in scenes {
+        let mut world =
+            tumble::scene::load_file(&scene, &ConstraintsChoice::Auto, Settings::default())
+                .unwrap_or_else(|e| panic!("{e}"));
+        let name = scene.file_name().unwrap().to_string_lossy().into_owned();
+        let constraints_file = tumble::scene::default_constraints_path(&scene).unwrap();
+        if constraints_file.exists() {
+            let text = std::fs::read_to_string(&constraints_file).unwrap();
+            let records: usize = text.split_whitespace().next().unwrap().parse().unwrap();
+            assert_eq!(
+                world.constraints.len(),
+                2 * records,
+                "{name}: constraints not loaded"
+            );
+        }
+        run_finite(&mut world, 500, &name);
+        // Nothing sinks through the ground for good: every movable body ends above y = -depth.
+        for b in &world.bodies {
+            assert!(
+                b.position.y > -20.0,
+                "{name}: body fell through the ground ({})",
+                b.position
+            );
+        }
+    }
+}
+
+#[test]
+fn every_builtin_scene_loads_and_runs() {
+    for (name, _) in tumble::BUILTIN_SCENES {
+        let mut world =
+            tumble::scene::load(name, &ConstraintsChoice::Auto, Settings::default()).unwrap();
+        assert!(!world.bodies.is_empty());
+        run_finite(&mut world, 500, name);
+    }
+    let chain =
+        tumble::scene::load("two-chain", &ConstraintsChoice::Auto, Settings::default()).unwrap();
+    assert!(
+        !chain.constraints.is_empty(),
+        "two-chain loads its constraints automatically"
+    );
+    let none =
+        tumble::scene::load("two-chain", &ConstraintsChoice::None, Settings::default()).unwrap();
+    assert!(none.constraints.is_empty());
+}
+
+/// For a convex (or star-shaped) mesh, every outward face normal points away from the centre of
+/// mass.
+fn assert_outward(shape: &tumble::Shape, what: &str) {
+    assert!(!shape.triangles.is_empty(), "{what}: no boundary");
+    for t in &shape.triangles {
+        let [a, b, c] = t.map(|i| shape.rest_vertices[i as usize]);
+        let normal = (b - a).cross(c - a);
+        assert!(
+            normal.dot((a + b + c) / 3.0) > 0.0,
+            "{what}: triangle {t:?} faces inward"
+        );
+    }
+}
+
+#[test]
+fn every_mesh_has_outward_boundary_triangles() {
+    for (name, mesh) in tumble::assets::all_meshes() {
+        assert_outward(&shape(&mesh), name);
+    }
+    let Some(dir) = coursework_dir() else { return };
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let mesh = match path.extension().and_then(|e| e.to_str()) {
+            Some("mesh") => parse_medit(&path, &text).unwrap(),
+            Some("off") => parse_off(&path, &text).unwrap(),
+            _ => continue,
+        };
+        assert_outward(&shape(&mesh), &path.display().to_string());
+    }
+}
+
+#[test]
+fn shipped_assets_are_what_tumble_generates() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for (path, text) in tumble::assets::generated_files() {
+        let on_disk = std::fs::read_to_string(root.join(&path)).unwrap();
+        assert!(
+            on_disk == text,
+            "{path} differs from `tumble gen-assets` output; rerun it"
+        );
+    }
+}

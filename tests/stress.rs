@@ -1,0 +1,318 @@
+//! Stress suite: random scenes, extreme but legal inputs, long chains. Seeded and deterministic.
+mod common;
+
+use glam::{DQuat, DVec3};
+use tumble::settings::ConstraintSchedule;
+use tumble::{Settings, World, assets, generate};
+
+/// Lowest point of a body below the ground, by its vertices.
+fn depth_below_ground(world: &World) -> f64 {
+    (0..world.bodies.len())
+        .filter(|&i| !world.bodies[i].fixed)
+        .map(|i| {
+            world
+                .current_vertices(i)
+                .iter()
+                .map(|v| -v.y)
+                .fold(f64::MIN, f64::max)
+        })
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn random_scenes_stay_finite_and_above_ground() {
+    let cases = [
+        (1u64, 50usize, 0.001),
+        (2, 120, 0.01),
+        (3, 200, 0.02),
+        (4, 80, 0.05),
+    ];
+    for (seed, n, dt) in cases {
+        for settings in [
+            Settings {
+                time_step: dt,
+                ..Settings::default()
+            },
+            Settings {
+                time_step: dt,
+                ..Settings::accurate()
+            },
+        ] {
+            let mut world = generate::random(seed, n, 200.0, settings);
+            for step in 0..2000 {
+                let stats = world.step();
+                assert!(
+                    stats.quarantined.is_empty(),
+                    "seed {seed}: bodies {:?} blew up at step {step}",
+                    stats.quarantined
+                );
+            }
+            assert!(world.all_finite(), "seed {seed}: non-finite state");
+            // Whatever tunnels through a body is pushed back out at the ground: nothing ends
+            // deeper below y = 0 than one step of its fastest fall.
+            let depth = depth_below_ground(&world);
+            assert!(
+                depth < 1.0,
+                "seed {seed} dt {dt}: a body ends {depth} below the ground"
+            );
+        }
+    }
+}
+
+#[test]
+fn energy_does_not_grow_in_accurate_mode_without_constraints() {
+    // e <= 1, no constraints: collisions may only lose energy, up to the position projection's
+    // small gain (it lifts penetrating bodies). Bound: 2% of the initial energy measured from the
+    // lowest possible state, over 2000 steps.
+    for (seed, e) in [(11u64, 1.0), (12, 0.8), (13, 0.3)] {
+        let settings = Settings {
+            restitution: e,
+            time_step: 0.005,
+            ..Settings::accurate()
+        };
+        let mut world = generate::random(seed, 60, 50.0, settings);
+        let start = world.total_energy();
+        let mut worst = f64::MIN;
+        for _ in 0..2000 {
+            world.step();
+            worst = worst.max(world.total_energy());
+        }
+        assert!(
+            worst <= start + 0.02 * start.abs(),
+            "seed {seed} e {e}: energy rose from {start:.6e} to {worst:.6e}"
+        );
+    }
+}
+
+#[test]
+fn long_chain_with_tight_bounds_stays_bounded_and_reports_its_budget() {
+    let settings = Settings {
+        constraint_schedule: ConstraintSchedule::Sparse,
+        max_iterations: 20_000,
+        ..Settings::default()
+    };
+    let mut world = generate::chain(1000, settings); // 100 chains of 10
+    let mut hits = 0;
+    let mut worst: f64 = 0.0;
+    for _ in 0..500 {
+        let stats = world.step();
+        assert!(
+            stats.constraint_visits <= 20_000,
+            "visits {} over the budget",
+            stats.constraint_visits
+        );
+        hits += stats.budget_hit as usize;
+        worst = worst.max(
+            world
+                .constraints
+                .iter()
+                .map(|c| c.violation(&world.bodies) / c.rest_length)
+                .fold(0.0, f64::max),
+        );
+        if stats.budget_hit {
+            // Honest report: some constraint really is still violated.
+            assert!(world.max_constraint_violation() > 0.0);
+        }
+    }
+    assert!(world.all_finite());
+    eprintln!("chain-1000: worst relative violation {worst}, budget hit in {hits} of 500 steps");
+    assert!(worst < 0.5, "worst relative violation {worst}");
+    // One chain of 100 links with bounds 0.99..1.01.
+    let s = tumble::Shape::from_tet_mesh(&assets::cuboid(DVec3::new(1.0, 0.5, 0.5))).unwrap();
+    let (bottom, top) = (s.rest_vertices[0], s.rest_vertices[2]);
+    let mut bodies = Vec::new();
+    let mut constraints = Vec::new();
+    for k in 0..100 {
+        bodies.push(tumble::RigidBody::new(
+            0,
+            s.volume,
+            s.unit_inertia,
+            100.0,
+            k == 0,
+            DVec3::new(0.3 * k as f64, 400.0 - 1.5 * k as f64, 0.0),
+            DQuat::IDENTITY,
+        ));
+        if k > 0 {
+            let (i, j) = (k - 1, k);
+            let rest_length = (bodies[i].world_point(bottom) - bodies[j].world_point(top)).length();
+            for (bound, is_upper) in [(0.99, false), (1.01, true)] {
+                constraints.push(tumble::constraint::DistanceConstraint {
+                    body1: i,
+                    body2: j,
+                    vertex1: 0,
+                    vertex2: 2,
+                    local1: bottom,
+                    local2: top,
+                    reference: bound * rest_length,
+                    is_upper,
+                    rest_length,
+                });
+            }
+        }
+    }
+    for (budget, bound) in [(10_000, 20.0), (50_000, 1.0)] {
+        let mut world = World::new(
+            vec![s.clone()],
+            vec!["box".into()],
+            bodies.clone(),
+            constraints.clone(),
+            Settings {
+                max_iterations: budget,
+                ..Settings::default()
+            },
+        );
+        let (mut budget_hits, mut worst_first_half, mut worst) = (0, 0.0f64, 0.0f64);
+        for step in 0..600 {
+            let stats = world.step();
+            budget_hits += stats.budget_hit as usize;
+            assert!(stats.constraint_visits <= budget);
+            let v = world
+                .constraints
+                .iter()
+                .map(|c| c.violation(&world.bodies) / c.rest_length)
+                .fold(0.0, f64::max);
+            worst = worst.max(v);
+            if step < 300 {
+                worst_first_half = worst;
+            }
+        }
+        assert!(world.all_finite());
+        eprintln!(
+            "100-link chain, budget {budget}: worst relative violation {worst_first_half} after 300 steps, {worst} after 600, budget hit in {budget_hits} of 600 steps"
+        );
+        // Bounded: the stretch settles rather than growing without end, and a generous budget
+        // holds the chain close to its bounds.
+        assert!(
+            worst < bound,
+            "budget {budget}: worst relative violation {worst}"
+        );
+        if budget >= 50_000 {
+            assert!(
+                worst <= 1.5 * worst_first_half + 1e-3,
+                "budget {budget}: violation still growing ({worst_first_half} -> {worst})"
+            );
+        }
+    }
+}
+
+fn two_bodies(a: (f64, DVec3), b: (f64, DVec3), settings: Settings) -> World {
+    let s = tumble::Shape::from_tet_mesh(&assets::cuboid(DVec3::new(2.0, 1.0, 1.5))).unwrap();
+    let bodies = [a, b]
+        .iter()
+        .map(|&(density, p)| {
+            tumble::RigidBody::new(
+                0,
+                s.volume,
+                s.unit_inertia,
+                density,
+                false,
+                p,
+                DQuat::IDENTITY,
+            )
+        })
+        .collect();
+    World::new(vec![s], vec!["box".into()], bodies, Vec::new(), settings)
+}
+
+#[test]
+fn degenerate_but_legal_inputs() {
+    // Interpenetrating at the start, half inside each other.
+    let mut w = two_bodies(
+        (100.0, DVec3::new(0.0, 5.0, 0.0)),
+        (100.0, DVec3::new(1.0, 5.5, 0.3)),
+        Settings::default(),
+    );
+    for _ in 0..500 {
+        w.step();
+    }
+    assert!(w.all_finite());
+    assert!(
+        w.current_contacts().iter().all(|(_, _, c)| c.depth < 0.5),
+        "still deeply interpenetrated"
+    );
+    // Exactly touching the ground.
+    let mut w = two_bodies(
+        (100.0, DVec3::new(0.0, 1.0, 0.0)),
+        (100.0, DVec3::new(10.0, 1.0, 0.0)),
+        Settings::default(),
+    );
+    for _ in 0..500 {
+        w.step();
+    }
+    assert!(w.all_finite() && depth_below_ground(&w) < 0.2);
+    // Zero time step: nothing moves.
+    let mut w = two_bodies(
+        (100.0, DVec3::new(0.0, 5.0, 0.0)),
+        (100.0, DVec3::new(10.0, 5.0, 0.0)),
+        Settings {
+            time_step: 0.0,
+            ..Settings::default()
+        },
+    );
+    let before = w.bodies.clone();
+    for _ in 0..10 {
+        w.step();
+    }
+    assert_eq!(w.bodies, before);
+    // Huge time step: a body falls far through the ground in one step and is put back on it.
+    let mut w = two_bodies(
+        (100.0, DVec3::new(0.0, 5.0, 0.0)),
+        (100.0, DVec3::new(10.0, 5.0, 0.0)),
+        Settings {
+            time_step: 10.0,
+            ..Settings::default()
+        },
+    );
+    for _ in 0..20 {
+        w.step();
+    }
+    assert!(w.all_finite() && depth_below_ground(&w) < 1e-9);
+    // A body of tiny mass on one of huge mass (ratio 1e9).
+    let mut w = two_bodies(
+        (1e6, DVec3::new(0.0, 1.0, 0.0)),
+        (1e-3, DVec3::new(0.0, 3.0, 0.0)),
+        Settings {
+            restitution: 0.0,
+            ..Settings::default()
+        },
+    );
+    for _ in 0..1000 {
+        w.step();
+    }
+    assert!(w.all_finite());
+    assert!(
+        w.bodies[1].position.y > w.bodies[0].position.y,
+        "the light body fell through the heavy one"
+    );
+}
+
+#[test]
+fn injected_nan_is_quarantined_and_does_not_spread() {
+    let mut world = tumble::scene::load(
+        "stress",
+        &tumble::ConstraintsChoice::Auto,
+        Settings::default(),
+    )
+    .unwrap();
+    for _ in 0..50 {
+        world.step();
+    }
+    let victim = world.bodies.iter().position(|b| !b.fixed).unwrap();
+    world.bodies[victim].linear_velocity = DVec3::new(f64::NAN, 0.0, 0.0);
+    let stats = world.step();
+    assert_eq!(stats.quarantined, vec![victim]);
+    assert!(world.bodies[victim].quarantined && world.bodies[victim].is_finite());
+    for _ in 0..300 {
+        let stats = world.step();
+        assert!(stats.quarantined.is_empty());
+    }
+    assert!(world.all_finite(), "NaN reached other bodies");
+    // A blown-up speed is quarantined too.
+    let other = world
+        .bodies
+        .iter()
+        .rposition(|b| !b.fixed && !b.quarantined)
+        .unwrap();
+    world.bodies[other].angular_velocity = DVec3::splat(1e300);
+    assert_eq!(world.step().quarantined, vec![other]);
+}
