@@ -327,3 +327,63 @@ fn check_screenshot_file() {
         None => eprintln!("TUMBLE_CHECK_SCREENSHOT not set: nothing to check"),
     }
 }
+
+/// Ctrl-C during a recording: the frames rendered so far end up in a valid file under the final
+/// name, no partial file is left, and the exit status says SIGINT (130).
+#[cfg(unix)]
+#[test]
+fn record_survives_ctrl_c() {
+    let dir = scratch("sigint");
+    let out = dir.join("long.gif");
+    let mut child = tumble()
+        .args([
+            "record",
+            "mixed",
+            "--seconds",
+            "600",
+            "--size",
+            "64x48",
+            "-o",
+        ])
+        .arg(&out)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait until some frames went out (the partial file grows), or the process gave up.
+    let partial = dir.join(".long.gif.partial");
+    let start = std::time::Instant::now();
+    while std::fs::metadata(&partial).map_or(0, |m| m.len()) < 2000
+        && start.elapsed().as_secs() < 30
+    {
+        if child.try_wait().unwrap().is_some() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    if child.try_wait().unwrap().is_none() {
+        unsafe {
+            libc::kill(child.id() as libc::pid_t, libc::SIGINT);
+        }
+    }
+    let output = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    if stderr.contains("no usable GPU adapter") {
+        assert!(!require_gpu(), "TUMBLE_REQUIRE_GPU=1 but: {stderr}");
+        eprintln!("skipping: {stderr}");
+        return;
+    }
+    assert_eq!(output.status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("interrupted"), "{stderr}");
+    let mut options = gif::DecodeOptions::new();
+    options.set_color_output(gif::ColorOutput::RGBA);
+    let mut decoder = options
+        .read_info(std::fs::File::open(&out).unwrap())
+        .unwrap();
+    let mut frames = 0;
+    while decoder.read_next_frame().unwrap().is_some() {
+        frames += 1;
+    }
+    assert!(frames >= 1);
+    no_partial_files(&dir);
+}

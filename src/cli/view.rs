@@ -145,12 +145,6 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     )?;
     bar.finish_and_clear();
     let frames = report.frames.max(1) as f64;
-    if report.interrupted {
-        eprintln!(
-            "interrupted: kept the {} frames rendered so far",
-            report.frames
-        );
-    }
     println!(
         "wrote {} frames ({width}x{height}, {:.2} s simulated in {} steps) to {} in {:.2} s: {:.1} ms/frame (simulate {:.1}, render+readback {:.1}, waiting for the encoder {:.1}) on {}",
         report.frames,
@@ -164,6 +158,15 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
         1e3 * report.encode_wait_s / frames,
         report.adapter,
     );
+    if report.interrupted {
+        eprintln!(
+            "interrupted (Ctrl-C): {} holds the {} frames rendered before it",
+            args.output.display(),
+            report.frames
+        );
+        // The shell's convention for "stopped by SIGINT".
+        std::process::exit(130);
+    }
     Ok(())
 }
 
