@@ -237,13 +237,17 @@ impl App {
             .context("cannot create a rendering surface for the window")?;
         let gpu = Gpu::with_instance(instance, Some(&surface))?;
         let caps = surface.get_capabilities(&gpu.adapter);
+        // The window's own format is the gamma-space one egui wants (blending in sRGB space, and
+        // much cheaper on software rasterisers); the scene is rendered in the sRGB variant and
+        // copied in, which keeps its bytes.
         let format = caps
             .formats
             .iter()
             .copied()
-            .find(|f| f.is_srgb())
+            .find(|f| !f.is_srgb() && f.add_srgb_suffix() != *f)
             .or_else(|| caps.formats.first().copied())
             .context("the window surface supports no format")?;
+        let scene_format = format.add_srgb_suffix();
         let size = window.inner_size();
         let present_mode = if self.options.vsync {
             wgpu::PresentMode::AutoVsync
@@ -254,6 +258,11 @@ impl App {
             .get_default_config(&gpu.adapter, size.width.max(1), size.height.max(1))
             .context("the window surface is not supported by the adapter")?;
         config.format = format;
+        config.view_formats = if scene_format != format {
+            vec![scene_format]
+        } else {
+            Vec::new()
+        };
         config.present_mode = present_mode;
         let copy_to_surface = caps.usages.contains(wgpu::TextureUsages::COPY_DST)
             && std::env::var_os("TUMBLE_NO_SURFACE_COPY").is_none();
@@ -265,7 +274,7 @@ impl App {
             };
         surface.configure(&gpu.device, &config);
 
-        let mut renderer = Renderer::new(&gpu, format);
+        let mut renderer = Renderer::new(&gpu, scene_format);
         renderer.set_world(&gpu.device, &self.session.world);
         renderer.resize(&gpu.device, config.width, config.height);
 
@@ -476,7 +485,12 @@ impl App {
             let panel_state = &mut self.panel;
             let mut view_rect = egui::Rect::NOTHING;
             let output = gfx.egui_ctx.run_ui(raw_input, |ui| {
+                // No fill: the window is cleared to the panel colour before egui draws, which
+                // spares software rasterisers a window-high quad every frame.
+                let frame =
+                    egui::Frame::side_top_panel(ui.style()).fill(egui::Color32::TRANSPARENT);
                 egui::Panel::right("controls")
+                    .frame(frame)
                     .default_size(330.0)
                     .show(ui, |ui| {
                         actions = panel::show(ui, session, panel_state, &info);
@@ -605,6 +619,7 @@ impl App {
                 gfx.config.format,
             ));
         }
+        let panel_fill = gfx.egui_ctx.global_style().visuals.panel_fill;
         let t_acquire = Instant::now();
         let mut encoder = gfx.gpu.device.create_command_encoder(&Default::default());
         let user_buffers = gfx.egui_renderer.update_buffers(
@@ -617,28 +632,33 @@ impl App {
         // The scene is drawn once into the view-sized scene texture and copied into each
         // target (the window, and the capture for a screenshot); without copies into the
         // surface it is drawn straight into each target.
-        let surface_view = surface_texture.as_ref().map(|t| {
-            t.texture
-                .create_view(&wgpu::TextureViewDescriptor::default())
+        let surface_views = surface_texture.as_ref().map(|t| {
+            let view = t.texture.create_view(&Default::default());
+            let srgb_view = t.texture.create_view(&wgpu::TextureViewDescriptor {
+                format: Some(gfx.renderer.color_format),
+                ..Default::default()
+            });
+            (view, srgb_view)
         });
-        let mut targets: Vec<(&wgpu::Texture, &wgpu::TextureView)> = Vec::new();
-        if let (Some(t), Some(view)) = (&surface_texture, &surface_view) {
-            targets.push((&t.texture, view));
+        // (texture, its view for egui, its sRGB view for the scene)
+        let mut targets: Vec<(&wgpu::Texture, &wgpu::TextureView, &wgpu::TextureView)> = Vec::new();
+        if let (Some(t), Some((view, srgb_view))) = (&surface_texture, &surface_views) {
+            targets.push((&t.texture, view, srgb_view));
         }
         if want_screenshot.is_some()
             && let Some(capture) = &gfx.capture
         {
-            targets.push((&capture.texture, &capture.view));
+            targets.push((&capture.texture, &capture.view, &capture.srgb_view));
         }
         if let Some(scene) = scene.and(gfx.scene.as_ref())
             && !targets.is_empty()
         {
             gfx.renderer.draw(&mut encoder, &scene.view, None);
         }
-        for (texture, view) in &targets {
+        for (texture, view, srgb_view) in &targets {
             match scene.and_then(|origin| gfx.scene.as_ref().map(|s| (origin, s))) {
                 Some((origin, scene)) => {
-                    clear_pass(&mut encoder, view);
+                    clear_pass(&mut encoder, view, gfx.config.format, panel_fill);
                     encoder.copy_texture_to_texture(
                         scene.texture.as_image_copy(),
                         wgpu::TexelCopyTextureInfo {
@@ -654,7 +674,9 @@ impl App {
                         },
                     );
                 }
-                None => gfx.renderer.draw(&mut encoder, view, Some(self.view_rect)),
+                None => gfx
+                    .renderer
+                    .draw(&mut encoder, srgb_view, Some(self.view_rect)),
             }
             let mut pass = encoder
                 .begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -824,15 +846,25 @@ fn prepare_scene_target(gfx: &mut Gfx, view_rect: [f32; 4]) -> Option<wgpu::Orig
         .as_ref()
         .is_none_or(|s| s.width != w || s.height != h)
     {
-        gfx.scene = Some(Offscreen::new(device, w, h, gfx.config.format));
+        gfx.scene = Some(Offscreen::new(device, w, h, gfx.renderer.color_format));
     }
     gfx.renderer.resize(device, w, h);
     Some(wgpu::Origin3d { x, y, z: 0 })
 }
 
 /// Clears a target to the background colour.
-fn clear_pass(encoder: &mut wgpu::CommandEncoder, view: &wgpu::TextureView) {
-    let c = super::palette::linear(super::palette::BACKGROUND_SRGB);
+fn clear_pass(
+    encoder: &mut wgpu::CommandEncoder,
+    view: &wgpu::TextureView,
+    format: wgpu::TextureFormat,
+    color: egui::Color32,
+) {
+    let srgb = [color.r(), color.g(), color.b()].map(|v| v as f32 / 255.0);
+    let c = if format.is_srgb() {
+        super::palette::linear(srgb)
+    } else {
+        srgb
+    };
     encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
         label: Some("clear"),
         color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -896,7 +928,7 @@ fn render_capture(
     }
     let capture = gfx.capture.as_ref().expect("created above");
     gfx.renderer
-        .draw(&mut encoder, &capture.view, Some(view_rect));
+        .draw(&mut encoder, &capture.srgb_view, Some(view_rect));
     capture.copy_to_buffer(&mut encoder);
     gfx.gpu.queue.submit([encoder.finish()]);
     let [x, y, w, h] = view_rect.map(|v| v.max(0.0).round() as u32);

@@ -164,6 +164,9 @@ impl Image {
 pub struct Offscreen {
     pub texture: wgpu::Texture,
     pub view: wgpu::TextureView,
+    /// The same texels seen as the sRGB variant of `format` (what the scene renderer draws
+    /// into); equal to `view` when `format` is already sRGB.
+    pub srgb_view: wgpu::TextureView,
     pub width: u32,
     pub height: u32,
     pub format: wgpu::TextureFormat,
@@ -192,9 +195,13 @@ impl Offscreen {
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT
                 | wgpu::TextureUsages::COPY_SRC
                 | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
+            view_formats: &[format.add_srgb_suffix()],
         });
         let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+        let srgb_view = texture.create_view(&wgpu::TextureViewDescriptor {
+            format: Some(format.add_srgb_suffix()),
+            ..Default::default()
+        });
         let padded_row = (4 * width).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
             * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
         let readback = device.create_buffer(&wgpu::BufferDescriptor {
@@ -206,6 +213,7 @@ impl Offscreen {
         Offscreen {
             texture,
             view,
+            srgb_view,
             width,
             height,
             format,

@@ -306,7 +306,7 @@ fn statistics_ui(ui: &mut egui::Ui, session: &Session, info: &FrameInfo) {
     let last = &session.last;
     egui::Grid::new("stats")
         .num_columns(2)
-        .striped(true)
+        .striped(false)
         .show(ui, |ui| {
             let fps = if info.frame_interval > 0.0 {
                 1.0 / info.frame_interval
@@ -451,7 +451,7 @@ fn selection_ui(ui: &mut egui::Ui, session: &Session, selected: Option<usize>) {
     let v3 = |v: glam::DVec3| format!("({:.3}, {:.3}, {:.3})", v.x, v.y, v.z);
     egui::Grid::new("selected")
         .num_columns(2)
-        .striped(true)
+        .striped(false)
         .show(ui, |ui| {
             stat(
                 ui,
