@@ -104,6 +104,7 @@ pub struct Renderer {
     body_pipeline: wgpu::RenderPipeline,
     line_pipeline: wgpu::RenderPipeline,
     ground_pipeline: wgpu::RenderPipeline,
+    overlay_pipeline: wgpu::RenderPipeline,
     meshes: Vec<ShapeMesh>,
     /// Body indices grouped by shape; `shape_ranges[s]` is shape `s`'s slice of it.
     order: Vec<u32>,
@@ -121,6 +122,8 @@ pub struct Renderer {
     line_buffer: wgpu::Buffer,
     line_capacity: usize,
     line_count: u32,
+    /// Lines from this index on are drawn without depth test.
+    overlay_start: u32,
     draw_grid: bool,
     /// Size of the scene, for the length of contact normals.
     scene_scale: f64,
@@ -311,6 +314,17 @@ impl Renderer {
             true,
             LessEqual,
         );
+        // Contact markers lie inside the overlapping bodies: drawn over everything.
+        let overlay_pipeline = make(
+            "overlay lines",
+            "vs_line",
+            "fs_line",
+            &line_vertex_layouts,
+            LineList,
+            None,
+            false,
+            Always,
+        );
         // The ground plane is painted first and writes no depth: everything is drawn over it,
         // including the parts of bodies that sink below y = 0.
         let ground_pipeline = make(
@@ -341,6 +355,7 @@ impl Renderer {
             body_pipeline,
             line_pipeline,
             ground_pipeline,
+            overlay_pipeline,
             meshes: Vec::new(),
             order: Vec::new(),
             shape_ranges: Vec::new(),
@@ -361,6 +376,7 @@ impl Renderer {
             ),
             line_capacity: 0,
             line_count: 0,
+            overlay_start: 0,
             draw_grid: true,
             scene_scale: 1.0,
             targets: None,
@@ -457,10 +473,12 @@ impl Renderer {
     }
 
     fn build_ground(&mut self, device: &wgpu::Device, lo: DVec3, hi: DVec3) {
+        // Around the origin, past the bodies, and at least as wide as the scene is tall (a
+        // tower stands on a floor, not on a tile).
         let half = [lo.x, hi.x, lo.z, hi.z]
             .iter()
             .map(|v| v.abs())
-            .fold(0.0, f64::max)
+            .fold(0.5 * (hi.y - lo.y), f64::max)
             .max(1.0)
             * 1.15;
         let step = nice_step(half / 12.0);
@@ -634,10 +652,11 @@ impl Renderer {
                 }
             }
         }
+        self.overlay_start = self.lines.len() as u32;
         if options.contacts {
             let point_color = with_alpha(palette::linear([1.0, 0.95, 0.2]), 1.0);
             let normal_color = with_alpha(palette::linear([1.0, 0.45, 0.1]), 1.0);
-            let s = 0.006 * self.scene_scale;
+            let s = 0.015 * self.scene_scale;
             for (_, _, contact) in world.current_contacts() {
                 let p = contact.point2;
                 for axis in [DVec3::X, DVec3::Y, DVec3::Z] {
@@ -741,9 +760,15 @@ impl Renderer {
             }
         }
         if self.line_count > 0 {
-            pass.set_pipeline(&self.line_pipeline);
             pass.set_vertex_buffer(0, self.line_buffer.slice(..));
-            pass.draw(0..self.line_count, 0..1);
+            if self.overlay_start > 0 {
+                pass.set_pipeline(&self.line_pipeline);
+                pass.draw(0..self.overlay_start, 0..1);
+            }
+            if self.line_count > self.overlay_start {
+                pass.set_pipeline(&self.overlay_pipeline);
+                pass.draw(self.overlay_start..self.line_count, 0..1);
+            }
         }
     }
 
