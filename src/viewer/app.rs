@@ -491,7 +491,8 @@ impl App {
                     egui::Frame::side_top_panel(ui.style()).fill(egui::Color32::TRANSPARENT);
                 egui::Panel::right("controls")
                     .frame(frame)
-                    .default_size(330.0)
+                    .default_size(360.0)
+                    .size_range(260.0..=640.0)
                     .show(ui, |ui| {
                         actions = panel::show(ui, session, panel_state, &info);
                     });

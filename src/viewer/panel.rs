@@ -75,7 +75,7 @@ pub fn show(
     info: &FrameInfo,
 ) -> Vec<Action> {
     let mut actions = Vec::new();
-    egui::ScrollArea::vertical().auto_shrink([false, false]).show(ui, |ui| {
+    egui::ScrollArea::vertical().auto_shrink([true, false]).show(ui, |ui| {
         ui.heading("tumble");
         ui.horizontal(|ui| {
             let label = if session.playing { "Pause" } else { "Play" };
@@ -142,7 +142,8 @@ pub fn show(
 
         egui::CollapsingHeader::new("Display").default_open(true).show(ui, |ui| {
             ui.checkbox(&mut state.draw.grid, "Ground grid");
-            ui.checkbox(&mut state.draw.constraints, "Constraints (green: within bounds, red: violated)");
+            ui.checkbox(&mut state.draw.constraints, "Constraint segments")
+                .on_hover_text("Green within bounds, through yellow to red at 10% of the rest length outside them");
             ui.checkbox(&mut state.draw.contacts, "Contact points and normals");
         });
 
@@ -261,20 +262,20 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
             .text("tolerance"),
     );
     ui.add(egui::Slider::new(substeps, 1..=32).text("substeps"));
-    ui.add(
-        egui::Slider::new(restitution_threshold, 0.0..=5.0).text("restitution threshold (units/s)"),
-    );
+    ui.add(egui::Slider::new(restitution_threshold, 0.0..=5.0).text("restitution threshold"))
+        .on_hover_text("Contacts closing slower than this (units/s) bounce with e = 0 (0: off)");
     ui.horizontal(|ui| {
         ui.label("gravity");
         ui.add(egui::DragValue::new(&mut gravity.x).speed(0.1).prefix("x "));
         ui.add(egui::DragValue::new(&mut gravity.y).speed(0.1).prefix("y "));
         ui.add(egui::DragValue::new(&mut gravity.z).speed(0.1).prefix("z "));
     });
-    ui.checkbox(skip_separating_contacts, "skip separating contacts");
-    ui.checkbox(
-        contact_patches,
-        "contact patches (force at the patch centroid)",
-    );
+    ui.checkbox(skip_separating_contacts, "skip separating contacts")
+        .on_hover_text("No impulse for contacts whose bodies already separate");
+    ui.checkbox(contact_patches, "contact patches")
+        .on_hover_text(
+            "Contacts act at the centroid of the contact patch, not at one deepest point",
+        );
     enum_choice(ui, "rotation integrator", rotation_integrator);
     enum_choice(ui, "broad phase", broad_phase);
     enum_choice(ui, "constraint schedule", constraint_schedule);
@@ -403,13 +404,11 @@ fn statistics_ui(ui: &mut egui::Ui, session: &Session, info: &FrameInfo) {
             }
             stat(
                 ui,
-                "GPU",
-                format!(
-                    "{} ({}x MSAA, {} body draws)",
-                    info.adapter, info.msaa, info.draw_calls
-                ),
+                "draw calls",
+                format!("{} for bodies, {}x MSAA", info.draw_calls, info.msaa),
             );
         });
+    ui.add(egui::Label::new(RichText::new(format!("GPU: {}", info.adapter)).small()).wrap());
 }
 
 fn plots_ui(ui: &mut egui::Ui, session: &Session) {
