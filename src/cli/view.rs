@@ -146,7 +146,8 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     bar.finish_and_clear();
     let frames = report.frames.max(1) as f64;
     println!(
-        "wrote {} frames ({width}x{height}, {:.2} s simulated in {} steps) to {} in {:.2} s: {:.1} ms/frame (simulate {:.1}, render+readback {:.1}, waiting for the encoder {:.1}) on {}",
+        "wrote {} frames ({width}x{height}, {:.2} s simulated in {} steps) to {} in {:.2} s: {:.1} ms/frame \
+         (simulate {:.1}, render+readback {:.1}, waiting for the encoder {:.1}; the encoder thread worked {:.1} ms/frame alongside) on {}",
         report.frames,
         report.sim_time,
         report.steps,
@@ -156,6 +157,7 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
         1e3 * report.simulate_s / frames,
         1e3 * report.render_s / frames,
         1e3 * report.encode_wait_s / frames,
+        1e3 * report.encode_s / frames,
         report.adapter,
     );
     if report.interrupted {

@@ -110,7 +110,7 @@ pub fn run(world: World, options: ViewOptions) -> anyhow::Result<()> {
         .context("the window's event loop failed")?;
     if let Some(recording) = app.recording.take() {
         let path = recording.writer.path.clone();
-        let frames = recording.writer.finish()?;
+        let (frames, _) = recording.writer.finish()?;
         eprintln!("recording: wrote {frames} frames to {}", path.display());
     }
     if let Some(error) = app.error.take() {
@@ -424,7 +424,7 @@ impl App {
         if let Some(recording) = self.recording.take() {
             let path = recording.writer.path.clone();
             self.panel.message = Some(match recording.writer.finish() {
-                Ok(frames) => format!("wrote {frames} frames to {}", path.display()),
+                Ok((frames, _)) => format!("wrote {frames} frames to {}", path.display()),
                 Err(e) => format!("recording failed: {e:#}"),
             });
         }

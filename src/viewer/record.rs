@@ -190,7 +190,9 @@ pub struct FrameWriter {
     pub width: u32,
     pub height: u32,
     sender: Option<SyncSender<Image>>,
-    thread: Option<JoinHandle<anyhow::Result<()>>>,
+    thread: Option<JoinHandle<anyhow::Result<f64>>>,
+    /// Seconds the encoder thread spent encoding, known after [`Self::finish`].
+    pub encode_s: f64,
     pub frames: u64,
 }
 
@@ -336,6 +338,7 @@ impl FrameWriter {
             height,
             sender: Some(sender),
             thread: Some(thread),
+            encode_s: 0.0,
             frames: 0,
         })
     }
@@ -360,18 +363,19 @@ impl FrameWriter {
 
     fn join(&mut self) -> anyhow::Result<()> {
         drop(self.sender.take());
-        match self.thread.take() {
-            Some(thread) => thread
+        if let Some(thread) = self.thread.take() {
+            self.encode_s = thread
                 .join()
-                .map_err(|_| anyhow::anyhow!("the encoder thread panicked"))?,
-            None => Ok(()),
+                .map_err(|_| anyhow::anyhow!("the encoder thread panicked"))??;
         }
+        Ok(())
     }
 
-    /// Encodes the queued frames and closes the file. Returns the number of frames written.
-    pub fn finish(mut self) -> anyhow::Result<u64> {
+    /// Encodes the queued frames and closes the file. Returns the number of frames written and
+    /// the seconds the encoder thread spent encoding them.
+    pub fn finish(mut self) -> anyhow::Result<(u64, f64)> {
         self.join()?;
-        Ok(self.frames)
+        Ok((self.frames, self.encode_s))
     }
 }
 
@@ -381,11 +385,16 @@ impl Drop for FrameWriter {
     }
 }
 
-fn encode(mut encoder: Box<dyn Encoder>, frames: Receiver<Image>) -> anyhow::Result<()> {
+fn encode(mut encoder: Box<dyn Encoder>, frames: Receiver<Image>) -> anyhow::Result<f64> {
+    let mut busy = 0.0;
     for mut image in frames {
+        let start = Instant::now();
         encoder.frame(&mut image)?;
+        busy += start.elapsed().as_secs_f64();
     }
-    encoder.finish()
+    let start = Instant::now();
+    encoder.finish()?;
+    Ok(busy + start.elapsed().as_secs_f64())
 }
 
 /// Settings of an offscreen recording.
@@ -414,6 +423,8 @@ pub struct RecordReport {
     pub render_s: f64,
     /// Seconds waiting for the encoder (queue full) and finishing the file.
     pub encode_wait_s: f64,
+    /// Seconds the encoder thread worked (in parallel with rendering).
+    pub encode_s: f64,
     /// Stopped early by Ctrl-C; the frames so far were written.
     pub interrupted: bool,
     pub adapter: String,
@@ -460,6 +471,7 @@ pub fn record(
         simulate_s: 0.0,
         render_s: 0.0,
         encode_wait_s: 0.0,
+        encode_s: 0.0,
         interrupted: false,
         adapter: offscreen.gpu.description(),
     };
@@ -486,7 +498,7 @@ pub fn record(
         progress(k + 1, frames);
     }
     let t = Instant::now();
-    writer.finish()?;
+    report.encode_s = writer.finish()?.1;
     report.encode_wait_s += t.elapsed().as_secs_f64();
     report.sim_time = world.time - start_time;
     report.wall_s = start.elapsed().as_secs_f64();
