@@ -511,8 +511,8 @@ impl App {
             self.view_rect = [
                 x,
                 y,
-                (r.width() * ppp).clamp(1.0, ww - x).max(1.0),
-                (r.height() * ppp).clamp(1.0, wh - y).max(1.0),
+                (r.width() * ppp).min(ww - x).max(1.0),
+                (r.height() * ppp).min(wh - y).max(1.0),
             ];
         }
         if !self.camera_framed {
@@ -838,9 +838,11 @@ fn prepare_scene_target(gfx: &mut Gfx, view_rect: [f32; 4]) -> Option<wgpu::Orig
         return None;
     }
     let [x, y, w, h] = view_rect.map(|v| v.max(0.0).round() as u32);
+    // Inside the window, even when the panel covers all of it.
+    let (x, y) = (x.min(gfx.config.width - 1), y.min(gfx.config.height - 1));
     let (w, h) = (
-        w.clamp(1, gfx.config.width - x.min(gfx.config.width - 1)),
-        h.clamp(1, gfx.config.height - y.min(gfx.config.height - 1)),
+        w.clamp(1, gfx.config.width - x),
+        h.clamp(1, gfx.config.height - y),
     );
     if gfx
         .scene
