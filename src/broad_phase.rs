@@ -120,9 +120,13 @@ impl Grid {
 
     /// Rebuilds the grid from scratch over `aabbs`; bodies with `active[i] == false` are left out.
     pub fn rebuild(&mut self, aabbs: &[Aabb], active: &[bool]) {
-        for list in self.cells.values_mut() {
+        // Cells left empty by the last step are dropped, so the map does not grow with every
+        // cell a body ever passed through; the others keep their allocation.
+        self.cells.retain(|_, list| {
+            let keep = !list.is_empty();
             list.clear();
-        }
+            keep
+        });
         self.oversized.clear();
         self.ranges.clear();
         self.ranges.resize(aabbs.len(), None);

@@ -16,6 +16,12 @@ use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 use std::time::Instant;
 
+/// Sleep thresholds (with the `sleep` setting): a body slower than these for `SLEEP_AFTER`
+/// seconds sleeps. The linear threshold sits above the `g dt` a resting body gains each step.
+pub const SLEEP_LINEAR_SPEED: f64 = 0.5;
+pub const SLEEP_ANGULAR_SPEED: f64 = 0.2;
+pub const SLEEP_AFTER: f64 = 0.5;
+
 /// Speeds above this are treated as a blown-up state and quarantined.
 pub const ABSURD_SPEED: f64 = 1e12;
 
@@ -36,6 +42,11 @@ pub struct World {
     constraints_by_body: Vec<Vec<u32>>,
     grid: Grid,
     aabbs: Vec<Aabb>,
+    /// Fattened boxes the grid holds during the contact stage (each contains its body's box).
+    proxies: Vec<Aabb>,
+    /// Share of candidate pairs the last contact stage computed sequentially (because a body had
+    /// moved): when high, the parallel precomputation is not worth it.
+    recomputed_fraction: f64,
     /// Last state known finite, restored when a body is quarantined.
     last_good: Vec<(DVec3, DQuat)>,
     initial_bodies: Vec<RigidBody>,
@@ -52,6 +63,10 @@ fn ground_body() -> RigidBody {
         DVec3::ZERO,
         DQuat::IDENTITY,
     )
+}
+
+fn contains(outer: &Aabb, inner: &Aabb) -> bool {
+    outer.min.cmple(inner.min).all() && inner.max.cmple(outer.max).all()
 }
 
 fn timed<T>(slot: &mut f64, f: impl FnOnce() -> T) -> T {
@@ -93,6 +108,8 @@ impl World {
             constraints_by_body,
             grid: Grid::new(cell),
             aabbs: Vec::new(),
+            proxies: Vec::new(),
+            recomputed_fraction: 0.0,
             last_good,
         }
     }
@@ -143,6 +160,9 @@ impl World {
         stats.timings.ground = ground_time;
         if !self.constraints.is_empty() {
             let start = Instant::now();
+            if settings.sleep {
+                self.wake_constrained_neighbours();
+            }
             let report = solve_constraints(
                 &self.constraints,
                 &self.constraints_by_body,
@@ -157,14 +177,20 @@ impl World {
             stats.budget_hit = report.budget_hit;
         }
         let mut finalize = 0.0;
-        timed(&mut finalize, || self.quarantine_blown_up(&mut stats));
+        timed(&mut finalize, || {
+            self.quarantine_blown_up(&mut stats);
+            if settings.sleep {
+                self.update_sleep(dt);
+            }
+        });
         stats.timings.finalize = finalize;
         stats
     }
 
     fn collides(&self, i: usize, j: usize) -> bool {
         let (a, b) = (&self.bodies[i], &self.bodies[j]);
-        !(a.quarantined || b.quarantined || a.fixed && b.fixed)
+        let resting = |x: &RigidBody| x.fixed || x.asleep;
+        !(a.quarantined || b.quarantined || resting(a) && resting(b))
     }
 
     fn contact_between(&self, i: usize, j: usize) -> Option<Contact> {
@@ -191,6 +217,12 @@ impl World {
         stats: &mut StepStats,
     ) {
         let (a, b) = bodies_pair_mut(&mut self.bodies, i, j);
+        // A contact with an awake body wakes a sleeping one.
+        for body in [&mut *a, &mut *b] {
+            if body.asleep {
+                body.wake();
+            }
+        }
         resolve_contact(a, b, contact, params);
         stats.contacts += 1;
         stats.max_penetration = stats.max_penetration.max(contact.depth);
@@ -252,31 +284,52 @@ impl World {
             return;
         }
 
-        // Broad phase: candidate pairs from the grid.
+        // Broad phase: candidate pairs of proxy boxes (body boxes fattened by a margin) from the
+        // grid. While a body's box stays inside its proxy, every pair it can newly overlap is
+        // already a candidate; only a body that escapes its proxy is looked up again.
         let start = Instant::now();
         let active: Vec<bool> = self.bodies.iter().map(|b| !b.quarantined).collect();
-        self.grid.rebuild(&self.aabbs, &active);
+        let proxies: Vec<Aabb> = (0..n).map(|i| self.proxy_of(i)).collect();
+        self.proxies = proxies;
+        self.grid.rebuild(&self.proxies, &active);
         let candidates = {
             let this = &*self;
-            this.grid.overlapping_pairs(
-                &this.aabbs,
-                |i, j| this.collides(i, j),
-                &mut stats.pairs_tested,
-            )
+            // Fixedness and quarantine cannot change during the stage; sleep can, so it is
+            // checked when a pair is processed.
+            let static_pair = |i: usize, j: usize| {
+                let (a, b) = (&this.bodies[i], &this.bodies[j]);
+                !(a.quarantined || b.quarantined || a.fixed && b.fixed)
+            };
+            this.grid
+                .overlapping_pairs(&this.proxies, static_pair, &mut stats.pairs_tested)
         };
         stats.timings.broad_phase += start.elapsed().as_secs_f64();
 
-        // Narrow phase on all candidates at the poses after integration, in parallel.
+        // Narrow phase, in parallel, on the candidates whose boxes overlap after integration.
+        // Skipped (each pair computed when it is reached) on one thread, or when most pairs had
+        // to be computed again last step anyway: results are the same either way.
         let start = Instant::now();
-        let precomputed: Vec<Option<Contact>> = {
+        let eager = rayon::current_num_threads() > 1 && self.recomputed_fraction < 0.5;
+        let precomputed: Vec<Option<Contact>> = if eager {
             let this = &*self;
             candidates
                 .par_iter()
                 .with_min_len(16)
-                .map(|&(i, j)| this.contact_between(i as usize, j as usize))
+                .map(|&(i, j)| {
+                    let (i, j) = (i as usize, j as usize);
+                    let overlap = this.aabbs[i].overlaps(&this.aabbs[j]) && this.collides(i, j);
+                    if overlap {
+                        this.contact_between(i, j)
+                    } else {
+                        None
+                    }
+                })
                 .collect()
+        } else {
+            Vec::new()
         };
-        stats.narrow_phase_queries += candidates.len();
+        let queries_before = stats.narrow_phase_queries;
+        stats.narrow_phase_queries += precomputed.len();
         stats.timings.narrow_phase += start.elapsed().as_secs_f64();
 
         // Sequential resolution in pair order; pairs touching a moved body are re-tested.
@@ -311,9 +364,9 @@ impl World {
             last = Some(pair);
             let (i, j) = (pair.0 as usize, pair.1 as usize);
             let contact = match precomputed_index {
-                Some(k) if !moved[i] && !moved[j] => precomputed[k],
+                Some(k) if eager && !moved[i] && !moved[j] => precomputed[k],
                 _ => {
-                    if !self.aabbs[i].overlaps(&self.aabbs[j]) {
+                    if !self.aabbs[i].overlaps(&self.aabbs[j]) || !self.collides(i, j) {
                         continue;
                     }
                     let t = Instant::now();
@@ -324,22 +377,29 @@ impl World {
                 }
             };
             let Some(contact) = contact else { continue };
+            let woke = [i, j].map(|b| self.bodies[b].asleep);
             self.apply_contact(i, j, &contact, params, stats);
-            for b in [i, j] {
+            for (k, b) in [i, j].into_iter().enumerate() {
                 if !self.bodies[b].is_dynamic() {
                     continue;
                 }
                 moved[b] = true;
                 self.refresh_aabb(b);
-                self.grid.update(b, &self.aabbs[b]);
-                self.grid.query(b, &self.aabbs, &mut neighbours);
-                for &k in &neighbours {
-                    let later = if (b as u32) < k {
-                        (b as u32, k)
+                // A body that woke may now collide with sleeping neighbours that were no
+                // candidates' concern before: look it up as if it had escaped.
+                if contains(&self.proxies[b], &self.aabbs[b]) && !woke[k] {
+                    continue;
+                }
+                self.proxies[b] = self.proxy_of(b);
+                self.grid.update(b, &self.proxies[b]);
+                self.grid.query(b, &self.proxies, &mut neighbours);
+                for &other in &neighbours {
+                    let later = if (b as u32) < other {
+                        (b as u32, other)
                     } else {
-                        (k, b as u32)
+                        (other, b as u32)
                     };
-                    if later > pair && self.collides(later.0 as usize, later.1 as usize) {
+                    if later > pair {
                         extra.push(Reverse(later));
                     }
                 }
@@ -347,6 +407,20 @@ impl World {
         }
         stats.timings.narrow_phase += narrow_again;
         stats.timings.contact_resolution += start.elapsed().as_secs_f64() - narrow_again;
+        let recomputed = stats.narrow_phase_queries - queries_before - precomputed.len();
+        self.recomputed_fraction = recomputed as f64 / candidates.len().max(1) as f64;
+    }
+
+    /// The body's box fattened by a tenth of its size: room to move during contact resolution
+    /// before the grid must be asked again.
+    fn proxy_of(&self, index: usize) -> Aabb {
+        let body = &self.bodies[index];
+        let margin = 0.5 * self.shapes[body.shape].local_box_half_extents.max_element();
+        let aabb = self.aabbs[index];
+        Aabb {
+            min: aabb.min - DVec3::splat(margin),
+            max: aabb.max + DVec3::splat(margin),
+        }
     }
 
     /// Every movable body whose lowest vertex is at or below y = 0 collides with the ground.
@@ -354,7 +428,7 @@ impl World {
     fn resolve_ground_contacts(&mut self, params: &ContactParams, stats: &mut StepStats) {
         let mut ground = ground_body();
         for index in 0..self.bodies.len() {
-            if !self.bodies[index].is_dynamic() || self.aabbs[index].min.y > 0.0 {
+            if !self.bodies[index].is_awake() || self.aabbs[index].min.y > 0.0 {
                 continue;
             }
             let body = &self.bodies[index];
@@ -389,6 +463,40 @@ impl World {
             body.angular_velocity = DVec3::ZERO;
             body.quarantined = true;
             stats.quarantined.push(index);
+        }
+    }
+
+    /// A sleeping body tied by a constraint to an awake movable body wakes up (repeatedly, so a
+    /// whole chain wakes together).
+    fn wake_constrained_neighbours(&mut self) {
+        let mut changed = true;
+        while changed {
+            changed = false;
+            for c in &self.constraints {
+                let (a, b) = (&self.bodies[c.body1], &self.bodies[c.body2]);
+                let (wake1, wake2) = (a.asleep && b.is_awake(), b.asleep && a.is_awake());
+                if wake1 {
+                    self.bodies[c.body1].wake();
+                }
+                if wake2 {
+                    self.bodies[c.body2].wake();
+                }
+                changed |= wake1 || wake2;
+            }
+        }
+    }
+
+    /// Bodies slower than the sleep thresholds for `SLEEP_AFTER` seconds fall asleep.
+    fn update_sleep(&mut self, dt: f64) {
+        for body in self.bodies.iter_mut().filter(|b| b.is_awake()) {
+            let slow = body.linear_velocity.length() < SLEEP_LINEAR_SPEED
+                && body.angular_velocity.length() < SLEEP_ANGULAR_SPEED;
+            body.rest_time = if slow { body.rest_time + dt } else { 0.0 };
+            if body.rest_time >= SLEEP_AFTER {
+                body.asleep = true;
+                body.linear_velocity = DVec3::ZERO;
+                body.angular_velocity = DVec3::ZERO;
+            }
         }
     }
 

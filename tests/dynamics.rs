@@ -372,3 +372,61 @@ fn velocity_projection_zeroes_jv_and_keeps_linear_momentum() {
     assert!(jv.abs() < 1e-13, "J.v = {jv}");
     assert_vec_close(momentum([&a, &b]), p, 1e-13, "linear momentum");
 }
+
+#[test]
+fn sleeping_body_wakes_when_hit() {
+    // A box resting on the ground falls asleep; a box dropped on it wakes it.
+    let s = shape(&assets::cuboid(DVec3::new(2.0, 1.0, 2.0)));
+    let resting = body(
+        &s,
+        0,
+        100.0,
+        false,
+        DVec3::new(0.0, 1.0, 0.0),
+        DQuat::IDENTITY,
+    );
+    let falling = body(
+        &s,
+        0,
+        100.0,
+        false,
+        DVec3::new(0.0, 30.0, 0.0),
+        DQuat::IDENTITY,
+    );
+    let settings = Settings {
+        sleep: true,
+        restitution: 0.0,
+        ..Settings::default()
+    };
+    let mut world = World::new(
+        vec![s],
+        vec!["box".into()],
+        vec![resting, falling],
+        vec![],
+        settings,
+    );
+    let mut slept_before_impact = false;
+    let mut woken_by_impact = false;
+    for _ in 0..400 {
+        let was_asleep = world.bodies[0].asleep;
+        let stats = world.step();
+        if stats.contacts > 0 {
+            // The first body-body contact: the resting box was asleep and is awake now.
+            slept_before_impact = was_asleep;
+            woken_by_impact = !world.bodies[0].asleep;
+            break;
+        }
+    }
+    assert!(
+        slept_before_impact,
+        "the resting box never fell asleep before the impact"
+    );
+    assert!(woken_by_impact, "the impact did not wake the resting box");
+    for _ in 0..100 {
+        world.step();
+    }
+    assert!(
+        world.bodies[1].position.y > world.bodies[0].position.y + 1.5,
+        "the falling box went through the sleeping one"
+    );
+}
