@@ -21,6 +21,8 @@ pub mod scene;
 pub mod settings;
 pub mod shape;
 pub mod stats;
+#[cfg(feature = "viewer")]
+pub mod viewer;
 pub mod world;
 
 pub use body::{BodyId, RigidBody};

@@ -17,6 +17,10 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Open the real-time viewer (the default when no command is given).
+    View(cli::view::ViewArgs),
+    /// Render a scene offscreen to .mp4, .gif or PNG frames.
+    Record(cli::view::RecordArgs),
     /// Simulate headless and print a summary (or JSON).
     Run(cli::run::RunArgs),
     /// Benchmarks: `scale` (run time against scene size) and `accuracy` (error against run time).
@@ -30,6 +34,13 @@ enum Command {
         #[arg(long, default_value = ".")]
         root: std::path::PathBuf,
     },
+}
+
+/// `tumble` alone: the viewer on the default scene.
+#[derive(Parser)]
+struct DefaultView {
+    #[command(flatten)]
+    args: cli::view::ViewArgs,
 }
 
 #[derive(Subcommand)]
@@ -53,7 +64,9 @@ fn main() -> ExitCode {
             Ok(())
         }
         Some(Command::GenAssets { root }) => gen_assets(&root),
-        None => Err(anyhow::anyhow!("no command given; try `tumble --help`")),
+        Some(Command::View(args)) => cli::view::view(&args),
+        Some(Command::Record(args)) => cli::view::record(&args),
+        None => cli::view::view(&DefaultView::parse_from(["tumble"]).args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

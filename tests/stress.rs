@@ -322,10 +322,35 @@ fn injected_nan_is_quarantined_and_does_not_spread() {
 fn thrown_at_wall(settings: Settings) -> f64 {
     let ball = tumble::Shape::from_tet_mesh(&assets::cuboid(DVec3::splat(0.5))).unwrap();
     let wall = tumble::Shape::from_tet_mesh(&assets::cuboid(DVec3::new(0.5, 20.0, 20.0))).unwrap();
-    let mut thrown = tumble::RigidBody::new(0, ball.volume, ball.unit_inertia, 100.0, false, DVec3::new(-10.0, 30.0, 0.0), DQuat::IDENTITY);
+    let mut thrown = tumble::RigidBody::new(
+        0,
+        ball.volume,
+        ball.unit_inertia,
+        100.0,
+        false,
+        DVec3::new(-10.0, 30.0, 0.0),
+        DQuat::IDENTITY,
+    );
     thrown.linear_velocity = DVec3::new(200.0, 0.0, 0.0);
-    let fixed = tumble::RigidBody::new(1, wall.volume, wall.unit_inertia, 100.0, true, DVec3::new(0.0, 30.0, 0.0), DQuat::IDENTITY);
-    let mut world = World::new(vec![ball, wall], vec!["ball".into(), "wall".into()], vec![thrown, fixed], Vec::new(), Settings { gravity: DVec3::ZERO, ..settings });
+    let fixed = tumble::RigidBody::new(
+        1,
+        wall.volume,
+        wall.unit_inertia,
+        100.0,
+        true,
+        DVec3::new(0.0, 30.0, 0.0),
+        DQuat::IDENTITY,
+    );
+    let mut world = World::new(
+        vec![ball, wall],
+        vec!["ball".into(), "wall".into()],
+        vec![thrown, fixed],
+        Vec::new(),
+        Settings {
+            gravity: DVec3::ZERO,
+            ..settings
+        },
+    );
     for _ in 0..10 {
         world.step();
     }
@@ -334,8 +359,21 @@ fn thrown_at_wall(settings: Settings) -> f64 {
 
 #[test]
 fn large_steps_tunnel_and_substeps_catch_it() {
-    let coarse = thrown_at_wall(Settings { time_step: 0.04, ..Settings::default() });
-    assert!(coarse > 0.0, "expected the coursework step to tunnel through the wall (x = {coarse})");
-    let substepped = thrown_at_wall(Settings { time_step: 0.04, substeps: 8, ..Settings::default() });
-    assert!(substepped < 0.0, "8 substeps should stop the box at the wall (x = {substepped})");
+    let coarse = thrown_at_wall(Settings {
+        time_step: 0.04,
+        ..Settings::default()
+    });
+    assert!(
+        coarse > 0.0,
+        "expected the coursework step to tunnel through the wall (x = {coarse})"
+    );
+    let substepped = thrown_at_wall(Settings {
+        time_step: 0.04,
+        substeps: 8,
+        ..Settings::default()
+    });
+    assert!(
+        substepped < 0.0,
+        "8 substeps should stop the box at the wall (x = {substepped})"
+    );
 }

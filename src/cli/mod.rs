@@ -7,6 +7,7 @@ pub mod plot;
 #[cfg(feature = "compare-rapier")]
 pub mod rapier;
 pub mod run;
+pub mod view;
 
 use clap::Args;
 use tumble::settings::{BroadPhase, ConstraintSchedule, RotationIntegrator};

@@ -1,0 +1,137 @@
+// tumble's scene shader: instanced rigid bodies, lines (grid, constraints, contacts) and the
+// ground plane. A compute entry point runs the very same body transform so tests can read back
+// the vertices the vertex shader computes.
+
+struct Globals {
+    view_proj: mat4x4<f32>,
+    // xyz: unit direction towards the key light; w: 1 for flat (unlit) shading.
+    light: vec4<f32>,
+    // xyz: camera position.
+    eye: vec4<f32>,
+};
+
+@group(0) @binding(0) var<uniform> globals: Globals;
+
+// The core's rotation, glam's `DQuat * DVec3`, term for term in f32:
+// v (w^2 - b.b) + b (2 v.b) + (b x v)(2 w), with q = (b, w).
+fn rotate(q: vec4<f32>, v: vec3<f32>) -> vec3<f32> {
+    let b = q.xyz;
+    let w = q.w;
+    return v * (w * w - dot(b, b)) + b * (dot(v, b) * 2.0) + cross(b, v) * (w * 2.0);
+}
+
+// The coursework's currV: R(q) origV + COM.
+fn body_point(q: vec4<f32>, com: vec3<f32>, local: vec3<f32>) -> vec3<f32> {
+    return rotate(q, local) + com;
+}
+
+struct BodyVertex {
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+};
+
+struct Instance {
+    @location(2) rotation: vec4<f32>,
+    // xyz: centre of mass; w unused.
+    @location(3) com: vec4<f32>,
+    // rgb: linear colour; a: highlight (0 or 1).
+    @location(4) color: vec4<f32>,
+};
+
+struct BodyOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) normal: vec3<f32>,
+    @location(1) color: vec4<f32>,
+    @location(2) world: vec3<f32>,
+};
+
+@vertex
+fn vs_body(v: BodyVertex, inst: Instance) -> BodyOut {
+    let world = body_point(inst.rotation, inst.com.xyz, v.position);
+    var out: BodyOut;
+    out.clip = globals.view_proj * vec4<f32>(world, 1.0);
+    out.normal = rotate(inst.rotation, v.normal);
+    out.color = inst.color;
+    out.world = world;
+    return out;
+}
+
+@fragment
+fn fs_body(in: BodyOut) -> @location(0) vec4<f32> {
+    if globals.light.w > 0.5 {
+        return vec4<f32>(in.color.rgb, 1.0);
+    }
+    let n = normalize(in.normal);
+    let l = globals.light.xyz;
+    let to_eye = normalize(globals.eye.xyz - in.world);
+    let key = max(dot(n, l), 0.0);
+    // Fill light from the camera, so faces turned away from the key light keep their shape.
+    let fill = max(dot(n, to_eye), 0.0);
+    // Hemisphere ambient: a little brighter from the sky than from the ground.
+    let ambient = mix(0.12, 0.24, 0.5 + 0.5 * n.y);
+    var c = in.color.rgb * (ambient + 0.75 * key + 0.25 * fill);
+    let h = normalize(l + to_eye);
+    c += vec3<f32>(0.12) * pow(max(dot(n, h), 0.0), 40.0) * step(0.0, dot(n, l));
+    // Picked body: tint towards warm white.
+    c = mix(c, vec3<f32>(1.0, 0.85, 0.4), in.color.a * 0.45);
+    return vec4<f32>(c, 1.0);
+}
+
+struct LineVertex {
+    @location(0) position: vec3<f32>,
+    @location(1) color: vec4<f32>,
+};
+
+struct LineOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) color: vec4<f32>,
+};
+
+@vertex
+fn vs_line(v: LineVertex) -> LineOut {
+    var out: LineOut;
+    out.clip = globals.view_proj * vec4<f32>(v.position, 1.0);
+    out.color = v.color;
+    return out;
+}
+
+@fragment
+fn fs_line(in: LineOut) -> @location(0) vec4<f32> {
+    return in.color;
+}
+
+// ---- Readback of the body transform (tests) ----
+
+struct InstanceData {
+    rotation: vec4<f32>,
+    com: vec4<f32>,
+    color: vec4<f32>,
+};
+
+struct CheckParams {
+    vertex_count: u32,
+    first_instance: u32,
+    instance_count: u32,
+    pad: u32,
+};
+
+// The mesh's vertex buffer itself: 6 floats (position, normal) per vertex.
+@group(0) @binding(1) var<storage, read> check_vertices: array<f32>;
+@group(0) @binding(2) var<storage, read> check_instances: array<InstanceData>;
+@group(0) @binding(3) var<storage, read_write> check_out: array<f32>;
+@group(0) @binding(4) var<uniform> check_params: CheckParams;
+
+@compute @workgroup_size(64)
+fn cs_body_points(@builtin(global_invocation_id) id: vec3<u32>) {
+    let index = id.x;
+    if index >= check_params.vertex_count * check_params.instance_count {
+        return;
+    }
+    let inst = check_instances[check_params.first_instance + index / check_params.vertex_count];
+    let vi = index % check_params.vertex_count;
+    let local = vec3<f32>(check_vertices[6u * vi], check_vertices[6u * vi + 1u], check_vertices[6u * vi + 2u]);
+    let p = body_point(inst.rotation, inst.com.xyz, local);
+    check_out[3u * index] = p.x;
+    check_out[3u * index + 1u] = p.y;
+    check_out[3u * index + 2u] = p.z;
+}

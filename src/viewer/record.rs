@@ -1,0 +1,526 @@
+//! Video output: MP4 through `ffmpeg`, GIF with the `gif` crate, or a directory of numbered PNGs,
+//! encoded on a background thread; and the offscreen recording loop of `tumble record`.
+
+use super::camera::OrbitCamera;
+use super::gpu::Image;
+use super::renderer::{DrawOptions, OffscreenRenderer};
+use crate::World;
+use anyhow::{Context, bail};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
+use std::thread::JoinHandle;
+use std::time::Instant;
+
+/// Writes `path` through a temporary sibling renamed into place at the end.
+pub fn write_file_atomically(
+    path: &Path,
+    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> anyhow::Result<()> {
+    let tmp = partial_path(path);
+    let file =
+        std::fs::File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
+    let mut writer = std::io::BufWriter::new(file);
+    write(&mut writer)
+        .and_then(|_| writer.flush())
+        .with_context(|| format!("cannot write {}", tmp.display()))?;
+    drop(writer);
+    std::fs::rename(&tmp, path)
+        .with_context(|| format!("cannot move {} to {}", tmp.display(), path.display()))
+}
+
+fn partial_path(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "out".into());
+    path.with_file_name(format!(".{name}.partial"))
+}
+
+/// What an output path means.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutputKind {
+    Mp4,
+    Gif,
+    /// A directory of `frame_000000.png`, ...
+    PngDir,
+}
+
+impl OutputKind {
+    pub fn of(path: &Path) -> anyhow::Result<OutputKind> {
+        let text = path.to_string_lossy();
+        if path.is_dir() || text.ends_with('/') || text.ends_with(std::path::MAIN_SEPARATOR) {
+            return Ok(OutputKind::PngDir);
+        }
+        match path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        {
+            Some(e) if e == "mp4" => Ok(OutputKind::Mp4),
+            Some(e) if e == "gif" => Ok(OutputKind::Gif),
+            None => Ok(OutputKind::PngDir),
+            Some(e) => bail!(
+                "cannot record to '{}': unknown extension .{e}; use .mp4, .gif, or a directory for PNG frames",
+                path.display()
+            ),
+        }
+    }
+}
+
+/// Whether an `ffmpeg` executable is on PATH.
+pub fn ffmpeg_on_path() -> bool {
+    std::env::var_os("PATH")
+        .is_some_and(|paths| std::env::split_paths(&paths).any(|dir| dir.join("ffmpeg").is_file()))
+}
+
+trait Encoder: Send {
+    fn frame(&mut self, image: &mut Image) -> anyhow::Result<()>;
+    fn finish(self: Box<Self>) -> anyhow::Result<()>;
+}
+
+struct GifEncoder {
+    encoder: gif::Encoder<std::io::BufWriter<std::fs::File>>,
+    path: PathBuf,
+    tmp: PathBuf,
+    fps: f64,
+    frames: u64,
+    centiseconds: u64,
+}
+
+impl Encoder for GifEncoder {
+    fn frame(&mut self, image: &mut Image) -> anyhow::Result<()> {
+        let mut frame = gif::Frame::from_rgba_speed(
+            image.width as u16,
+            image.height as u16,
+            &mut image.rgba,
+            10,
+        );
+        // GIF delays are whole centiseconds: round the frame's end time, so 30 fps alternates 3
+        // and 4 cs and stays in step.
+        self.frames += 1;
+        let end = (self.frames as f64 * 100.0 / self.fps).round() as u64;
+        frame.delay = (end - self.centiseconds).clamp(1, u16::MAX as u64) as u16;
+        self.centiseconds = end;
+        self.encoder
+            .write_frame(&frame)
+            .with_context(|| format!("cannot write {}", self.tmp.display()))
+    }
+
+    fn finish(self: Box<Self>) -> anyhow::Result<()> {
+        let mut writer = self
+            .encoder
+            .into_inner()
+            .with_context(|| format!("cannot write {}", self.tmp.display()))?;
+        writer
+            .flush()
+            .with_context(|| format!("cannot write {}", self.tmp.display()))?;
+        drop(writer);
+        std::fs::rename(&self.tmp, &self.path).with_context(|| {
+            format!(
+                "cannot move {} to {}",
+                self.tmp.display(),
+                self.path.display()
+            )
+        })
+    }
+}
+
+struct PngDirEncoder {
+    dir: PathBuf,
+    frames: u64,
+}
+
+impl Encoder for PngDirEncoder {
+    fn frame(&mut self, image: &mut Image) -> anyhow::Result<()> {
+        let path = self.dir.join(format!("frame_{:06}.png", self.frames));
+        self.frames += 1;
+        image.save_png(&path)
+    }
+
+    fn finish(self: Box<Self>) -> anyhow::Result<()> {
+        Ok(())
+    }
+}
+
+struct Mp4Encoder {
+    child: std::process::Child,
+    stdin: Option<std::process::ChildStdin>,
+    path: PathBuf,
+    tmp: PathBuf,
+}
+
+impl Encoder for Mp4Encoder {
+    fn frame(&mut self, image: &mut Image) -> anyhow::Result<()> {
+        let stdin = self.stdin.as_mut().expect("open until finish");
+        stdin
+            .write_all(&image.rgba)
+            .context("ffmpeg stopped accepting frames (see its messages above)")
+    }
+
+    fn finish(mut self: Box<Self>) -> anyhow::Result<()> {
+        drop(self.stdin.take());
+        let status = self.child.wait().context("cannot wait for ffmpeg")?;
+        if !status.success() {
+            let _ = std::fs::remove_file(&self.tmp);
+            bail!("ffmpeg failed ({status}) writing {}", self.path.display());
+        }
+        std::fs::rename(&self.tmp, &self.path).with_context(|| {
+            format!(
+                "cannot move {} to {}",
+                self.tmp.display(),
+                self.path.display()
+            )
+        })
+    }
+}
+
+impl Drop for Mp4Encoder {
+    fn drop(&mut self) {
+        if self.stdin.is_some() {
+            drop(self.stdin.take());
+            let _ = self.child.wait();
+        }
+    }
+}
+
+/// Frames go to an encoder thread through a short queue, so rendering and encoding overlap.
+pub struct FrameWriter {
+    pub path: PathBuf,
+    pub kind: OutputKind,
+    pub width: u32,
+    pub height: u32,
+    sender: Option<SyncSender<Image>>,
+    thread: Option<JoinHandle<anyhow::Result<f64>>>,
+    /// Seconds the encoder thread spent encoding, known after [`Self::finish`].
+    pub encode_s: f64,
+    pub frames: u64,
+}
+
+impl FrameWriter {
+    /// Checks that `path` can take `width` x `height` frames at `fps` (format known, ffmpeg
+    /// present for MP4, sizes allowed, parent directory present) without creating anything.
+    pub fn check(path: &Path, width: u32, height: u32, fps: f64) -> anyhow::Result<OutputKind> {
+        let kind = OutputKind::of(path)?;
+        anyhow::ensure!(width > 0 && height > 0, "the frame size must not be empty");
+        anyhow::ensure!(
+            fps.is_finite() && fps > 0.0,
+            "the frame rate must be positive, got {fps}"
+        );
+        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty())
+            && kind != OutputKind::PngDir
+        {
+            anyhow::ensure!(
+                parent.is_dir(),
+                "cannot write {}: directory {} does not exist",
+                path.display(),
+                parent.display()
+            );
+        }
+        match kind {
+            OutputKind::Gif => anyhow::ensure!(
+                width <= u16::MAX as u32 && height <= u16::MAX as u32,
+                "GIF frames are at most 65535 pixels wide and tall"
+            ),
+            OutputKind::Mp4 => {
+                if !ffmpeg_on_path() {
+                    bail!(
+                        "cannot write {}: ffmpeg is not on PATH. Install it (e.g. `apt-get install ffmpeg`), or record to a .gif or to a directory of PNG frames",
+                        path.display()
+                    );
+                }
+                anyhow::ensure!(
+                    width.is_multiple_of(2) && height.is_multiple_of(2),
+                    "MP4 (H.264, yuv420p) needs an even width and height, got {width}x{height}"
+                );
+            }
+            OutputKind::PngDir => {}
+        }
+        Ok(kind)
+    }
+
+    /// Opens `path` for `width` x `height` frames shown `fps` times per second.
+    pub fn create(path: &Path, width: u32, height: u32, fps: f64) -> anyhow::Result<FrameWriter> {
+        let kind = Self::check(path, width, height, fps)?;
+        let encoder: Box<dyn Encoder> = match kind {
+            OutputKind::Gif => {
+                let tmp = partial_path(path);
+                let file = std::fs::File::create(&tmp)
+                    .with_context(|| format!("cannot create {}", tmp.display()))?;
+                let mut encoder = gif::Encoder::new(
+                    std::io::BufWriter::new(file),
+                    width as u16,
+                    height as u16,
+                    &[],
+                )
+                .with_context(|| format!("cannot write {}", tmp.display()))?;
+                encoder.set_repeat(gif::Repeat::Infinite)?;
+                Box::new(GifEncoder {
+                    encoder,
+                    path: path.to_path_buf(),
+                    tmp,
+                    fps,
+                    frames: 0,
+                    centiseconds: 0,
+                })
+            }
+            OutputKind::PngDir => {
+                std::fs::create_dir_all(path)
+                    .with_context(|| format!("cannot create directory {}", path.display()))?;
+                // Frames of an earlier recording would mix with this one's.
+                for entry in std::fs::read_dir(path)?.flatten() {
+                    let name = entry.file_name().to_string_lossy().into_owned();
+                    if name.starts_with("frame_") && name.ends_with(".png") {
+                        let _ = std::fs::remove_file(entry.path());
+                    }
+                }
+                Box::new(PngDirEncoder {
+                    dir: path.to_path_buf(),
+                    frames: 0,
+                })
+            }
+            OutputKind::Mp4 => {
+                let tmp = partial_path(path);
+                let mut command = std::process::Command::new("ffmpeg");
+                command
+                    .args([
+                        "-hide_banner",
+                        "-loglevel",
+                        "error",
+                        "-y",
+                        "-f",
+                        "rawvideo",
+                        "-pixel_format",
+                        "rgba",
+                        "-video_size",
+                    ])
+                    .arg(format!("{width}x{height}"))
+                    .arg("-framerate")
+                    .arg(format!("{fps}"))
+                    .args([
+                        "-i",
+                        "-",
+                        "-c:v",
+                        "libx264",
+                        "-preset",
+                        "veryfast",
+                        "-pix_fmt",
+                        "yuv420p",
+                        "-movflags",
+                        "+faststart",
+                        "-f",
+                        "mp4",
+                    ])
+                    .arg(&tmp)
+                    .stdin(std::process::Stdio::piped())
+                    .stdout(std::process::Stdio::null());
+                // Its own process group: Ctrl-C in the terminal reaches tumble only, which then
+                // closes ffmpeg's input so the file is finished properly.
+                #[cfg(unix)]
+                std::os::unix::process::CommandExt::process_group(&mut command, 0);
+                let mut child = command.spawn().context("cannot start ffmpeg")?;
+                let stdin = child.stdin.take();
+                Box::new(Mp4Encoder {
+                    child,
+                    stdin,
+                    path: path.to_path_buf(),
+                    tmp,
+                })
+            }
+        };
+        let (sender, receiver) = sync_channel::<Image>(4);
+        let thread = std::thread::Builder::new()
+            .name("tumble-encoder".into())
+            .spawn(move || encode(encoder, receiver))?;
+        Ok(FrameWriter {
+            path: path.to_path_buf(),
+            kind,
+            width,
+            height,
+            sender: Some(sender),
+            thread: Some(thread),
+            encode_s: 0.0,
+            frames: 0,
+        })
+    }
+
+    /// Queues one frame; blocks while the encoder is behind.
+    pub fn push(&mut self, image: Image) -> anyhow::Result<()> {
+        anyhow::ensure!(
+            image.width == self.width && image.height == self.height,
+            "frame size changed during the recording"
+        );
+        let sent = self.sender.as_ref().is_some_and(|s| s.send(image).is_ok());
+        if !sent {
+            // The encoder thread stopped: report why.
+            return Err(self
+                .join()
+                .err()
+                .unwrap_or_else(|| anyhow::anyhow!("the encoder stopped")));
+        }
+        self.frames += 1;
+        Ok(())
+    }
+
+    fn join(&mut self) -> anyhow::Result<()> {
+        drop(self.sender.take());
+        if let Some(thread) = self.thread.take() {
+            self.encode_s = thread
+                .join()
+                .map_err(|_| anyhow::anyhow!("the encoder thread panicked"))??;
+        }
+        Ok(())
+    }
+
+    /// Encodes the queued frames and closes the file. Returns the number of frames written and
+    /// the seconds the encoder thread spent encoding them.
+    pub fn finish(mut self) -> anyhow::Result<(u64, f64)> {
+        self.join()?;
+        Ok((self.frames, self.encode_s))
+    }
+}
+
+impl Drop for FrameWriter {
+    fn drop(&mut self) {
+        let _ = self.join();
+    }
+}
+
+fn encode(mut encoder: Box<dyn Encoder>, frames: Receiver<Image>) -> anyhow::Result<f64> {
+    let mut busy = 0.0;
+    for mut image in frames {
+        let start = Instant::now();
+        encoder.frame(&mut image)?;
+        busy += start.elapsed().as_secs_f64();
+    }
+    let start = Instant::now();
+    encoder.finish()?;
+    Ok(busy + start.elapsed().as_secs_f64())
+}
+
+/// Settings of an offscreen recording.
+#[derive(Debug, Clone)]
+pub struct RecordOptions {
+    pub output: PathBuf,
+    /// Simulated seconds to record.
+    pub seconds: f64,
+    pub fps: f64,
+    pub width: u32,
+    pub height: u32,
+    /// `YAW,PITCH[,DISTANCE[,X,Y,Z]]` over the framed scene.
+    pub camera: Option<String>,
+    pub draw: DrawOptions,
+}
+
+#[derive(Debug, Clone)]
+pub struct RecordReport {
+    pub frames: u64,
+    pub steps: u64,
+    pub sim_time: f64,
+    pub wall_s: f64,
+    /// Seconds stepping the simulation.
+    pub simulate_s: f64,
+    /// Seconds rendering and reading frames back.
+    pub render_s: f64,
+    /// Seconds waiting for the encoder (queue full) and finishing the file.
+    pub encode_wait_s: f64,
+    /// Seconds the encoder thread worked (in parallel with rendering).
+    pub encode_s: f64,
+    /// Stopped early by Ctrl-C; the frames so far were written.
+    pub interrupted: bool,
+    pub adapter: String,
+}
+
+/// Renders `options.seconds` of simulation at a fixed rate (frame k shows time k / fps,
+/// whatever the rendering speed) into `options.output`. `progress(done, total)` is called after
+/// each frame; when `interrupted()` turns true the frames so far are finished into a valid file.
+pub fn record(
+    world: &mut World,
+    options: &RecordOptions,
+    progress: &mut dyn FnMut(u64, u64),
+    interrupted: &dyn Fn() -> bool,
+) -> anyhow::Result<RecordReport> {
+    let start = Instant::now();
+    let dt = world.settings.time_step;
+    anyhow::ensure!(
+        dt.is_finite() && dt > 0.0,
+        "the time step must be positive to record, got {dt}"
+    );
+    anyhow::ensure!(
+        options.seconds.is_finite() && options.seconds >= 0.0,
+        "--seconds must be a non-negative number"
+    );
+    anyhow::ensure!(
+        options.fps.is_finite() && options.fps > 0.0 && options.fps <= 1000.0,
+        "--fps must lie in (0, 1000]"
+    );
+    let frames = ((options.seconds * options.fps).round() as u64).max(1);
+    let mut camera = OrbitCamera::default();
+    camera.frame(world, options.width as f64 / options.height as f64);
+    if let Some(spec) = &options.camera {
+        camera.apply_spec(spec).map_err(anyhow::Error::msg)?;
+    }
+    FrameWriter::check(&options.output, options.width, options.height, options.fps)?;
+    let mut offscreen = OffscreenRenderer::new(world, options.width, options.height)?;
+    let mut writer =
+        FrameWriter::create(&options.output, options.width, options.height, options.fps)?;
+    let mut report = RecordReport {
+        frames: 0,
+        steps: 0,
+        sim_time: 0.0,
+        wall_s: 0.0,
+        simulate_s: 0.0,
+        render_s: 0.0,
+        encode_wait_s: 0.0,
+        encode_s: 0.0,
+        interrupted: false,
+        adapter: offscreen.gpu.description(),
+    };
+    let start_time = world.time;
+    for k in 0..frames {
+        if interrupted() {
+            report.interrupted = true;
+            break;
+        }
+        let t = Instant::now();
+        let frame_time = start_time + k as f64 / options.fps;
+        while world.time < frame_time - 0.5 * dt {
+            world.step();
+            report.steps += 1;
+        }
+        report.simulate_s += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        let image = offscreen.render(world, &camera, &options.draw)?;
+        report.render_s += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        writer.push(image)?;
+        report.encode_wait_s += t.elapsed().as_secs_f64();
+        report.frames += 1;
+        progress(k + 1, frames);
+    }
+    let t = Instant::now();
+    report.encode_s = writer.finish()?.1;
+    report.encode_wait_s += t.elapsed().as_secs_f64();
+    report.sim_time = world.time - start_time;
+    report.wall_s = start.elapsed().as_secs_f64();
+    Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn output_kinds() {
+        assert_eq!(OutputKind::of(Path::new("a.mp4")).unwrap(), OutputKind::Mp4);
+        assert_eq!(OutputKind::of(Path::new("a.GIF")).unwrap(), OutputKind::Gif);
+        assert_eq!(
+            OutputKind::of(Path::new("frames/")).unwrap(),
+            OutputKind::PngDir
+        );
+        assert_eq!(
+            OutputKind::of(Path::new("frames")).unwrap(),
+            OutputKind::PngDir
+        );
+        assert!(OutputKind::of(Path::new("a.avi")).is_err());
+    }
+}

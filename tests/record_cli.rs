@@ -1,0 +1,389 @@
+//! `tumble record` to GIF, PNG frames and MP4 (when ffmpeg is installed), `tumble view`'s
+//! errors without a display, and the real window under Xvfb when `xvfb-run` is installed.
+//!
+//! Tests that render print why they skip when there is no GPU adapter, and fail instead with
+//! TUMBLE_REQUIRE_GPU=1.
+#![cfg(feature = "viewer")]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn tumble() -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_tumble"));
+    // Quiet "XDG_RUNTIME_DIR is invalid" noise from the drivers.
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
+        command.env("XDG_RUNTIME_DIR", scratch("xdg"));
+    }
+    command
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("tumble-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o700)).unwrap();
+    }
+    dir
+}
+
+fn require_gpu() -> bool {
+    std::env::var("TUMBLE_REQUIRE_GPU").is_ok_and(|v| v == "1")
+}
+
+/// Runs a rendering command; None (skip) when it failed for want of a GPU adapter.
+fn run_rendering(command: &mut Command) -> Option<Output> {
+    let output = command.output().expect("tumble runs");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    if !output.status.success() && stderr.contains("no usable GPU adapter") {
+        assert!(!require_gpu(), "TUMBLE_REQUIRE_GPU=1 but: {stderr}");
+        eprintln!("skipping: {stderr}");
+        return None;
+    }
+    assert!(
+        output.status.success(),
+        "tumble failed: {stderr}\n{}",
+        String::from_utf8_lossy(&output.stdout)
+    );
+    Some(output)
+}
+
+fn no_partial_files(dir: &Path) {
+    for entry in std::fs::read_dir(dir).unwrap().flatten() {
+        assert!(
+            !entry.file_name().to_string_lossy().ends_with(".partial"),
+            "left behind: {}",
+            entry.path().display()
+        );
+    }
+}
+
+#[test]
+fn record_gif() {
+    let dir = scratch("gif");
+    let out = dir.join("mixed.gif");
+    let Some(_) = run_rendering(
+        tumble()
+            .args([
+                "record",
+                "mixed",
+                "--seconds",
+                "0.5",
+                "--fps",
+                "10",
+                "--size",
+                "96x64",
+                "-o",
+            ])
+            .arg(&out),
+    ) else {
+        return;
+    };
+    let mut options = gif::DecodeOptions::new();
+    options.set_color_output(gif::ColorOutput::RGBA);
+    let mut decoder = options
+        .read_info(std::fs::File::open(&out).unwrap())
+        .unwrap();
+    assert_eq!((decoder.width(), decoder.height()), (96, 64));
+    let mut frames = Vec::new();
+    while let Some(frame) = decoder.read_next_frame().unwrap() {
+        assert_eq!(frame.delay, 10, "10 fps = 10 cs per frame");
+        frames.push(frame.buffer.to_vec());
+    }
+    assert_eq!(frames.len(), 5);
+    assert_ne!(
+        frames[0], frames[4],
+        "the bodies fall between the first and last frame"
+    );
+    no_partial_files(&dir);
+}
+
+fn read_png(path: &Path) -> (u32, u32, Vec<u8>) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buffer = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buffer).unwrap();
+    buffer.truncate(info.buffer_size());
+    (info.width, info.height, buffer)
+}
+
+#[test]
+fn record_png_frames() {
+    let dir = scratch("png");
+    let out = dir.join("frames");
+    let Some(output) = run_rendering(
+        tumble()
+            .args([
+                "record",
+                "two-chain",
+                "--seconds",
+                "0.3",
+                "--fps",
+                "10",
+                "--size",
+                "80x60",
+                "--contacts",
+                "-o",
+            ])
+            .arg(&out),
+    ) else {
+        return;
+    };
+    assert!(String::from_utf8_lossy(&output.stdout).contains("wrote 3 frames"));
+    let mut names: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(
+        names,
+        ["frame_000000.png", "frame_000001.png", "frame_000002.png"]
+    );
+    let (w, h, first) = read_png(&out.join(&names[0]));
+    assert_eq!((w, h), (80, 60));
+    let (_, _, last) = read_png(&out.join(&names[2]));
+    assert_ne!(first, last);
+}
+
+#[test]
+fn record_mp4_when_ffmpeg_is_installed() {
+    if !tumble::viewer::record::ffmpeg_on_path() {
+        eprintln!("skipping: ffmpeg is not on PATH");
+        return;
+    }
+    let dir = scratch("mp4");
+    let out = dir.join("cube.mp4");
+    let Some(_) = run_rendering(
+        tumble()
+            .args([
+                "record",
+                "cube",
+                "--seconds",
+                "0.5",
+                "--fps",
+                "20",
+                "--size",
+                "128x72",
+                "--camera",
+                "20,15",
+                "-o",
+            ])
+            .arg(&out),
+    ) else {
+        return;
+    };
+    let bytes = std::fs::read(&out).unwrap();
+    assert!(
+        bytes.len() > 1000 && &bytes[4..8] == b"ftyp",
+        "not an MP4 file"
+    );
+    no_partial_files(&dir);
+    if let Ok(probe) = Command::new("ffprobe")
+        .args([
+            "-v",
+            "error",
+            "-count_frames",
+            "-select_streams",
+            "v:0",
+            "-show_entries",
+            "stream=nb_read_frames,width,height",
+            "-of",
+            "csv=p=0",
+        ])
+        .arg(&out)
+        .output()
+    {
+        let text = String::from_utf8_lossy(&probe.stdout);
+        assert_eq!(text.trim(), "128,72,10", "ffprobe: {text}");
+    }
+}
+
+#[test]
+fn record_errors_are_clear() {
+    let dir = scratch("errors");
+    let output = tumble()
+        .args(["record", "mixed", "-o"])
+        .arg(dir.join("x.avi"))
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    assert!(String::from_utf8_lossy(&output.stderr).contains("use .mp4, .gif, or a directory"));
+
+    let output = tumble()
+        .args(["record", "mixed", "-o"])
+        .arg(dir.join("x.mp4"))
+        .env("PATH", "")
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    assert!(
+        String::from_utf8_lossy(&output.stderr).contains("ffmpeg is not on PATH"),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+
+    let output = tumble()
+        .args(["record", "mixed", "--camera", "1,2,3,4", "-o"])
+        .arg(dir.join("x.gif"))
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+}
+
+#[test]
+fn view_without_display_points_to_record_and_run() {
+    // No display at all, and a stale WAYLAND_DISPLAY (winit would panic on it).
+    for wayland in [None, Some("wayland-stale-tumble-test")] {
+        let mut command = tumble();
+        command
+            .args(["view", "mixed"])
+            .env_remove("DISPLAY")
+            .env_remove("WAYLAND_DISPLAY");
+        if let Some(w) = wayland {
+            command.env("WAYLAND_DISPLAY", w);
+        }
+        let output = command.output().unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(1), "{stderr}");
+        assert!(
+            stderr.contains("tumble record") && stderr.contains("tumble run"),
+            "{stderr}"
+        );
+        assert!(!stderr.contains("panicked"), "{stderr}");
+    }
+}
+
+fn on_path(program: &str) -> bool {
+    std::env::var_os("PATH")
+        .is_some_and(|paths| std::env::split_paths(&paths).any(|d| d.join(program).is_file()))
+}
+
+/// The real app in a real (virtual) window: 30 frames of the mixed scene, then a screenshot of
+/// the window with the panel.
+#[test]
+fn view_window_under_xvfb() {
+    if !on_path("xvfb-run") {
+        eprintln!("skipping: xvfb-run is not installed");
+        return;
+    }
+    let dir = scratch("view");
+    let shot = dir.join("view.png");
+    let mut command = Command::new("xvfb-run");
+    command
+        .args([
+            "-a",
+            "-s",
+            "-screen 0 1024x700x24 -nolisten tcp",
+            env!("CARGO_BIN_EXE_tumble"),
+            "view",
+            "mixed",
+            "--size",
+            "1024x700",
+            "--frames",
+            "30",
+            "--screenshot",
+        ])
+        .arg(&shot)
+        .env("XDG_RUNTIME_DIR", scratch("view-xdg"))
+        .env_remove("WAYLAND_DISPLAY");
+    let Some(output) = run_rendering(&mut command) else {
+        return;
+    };
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("frames:"), "{stderr}");
+    check_screenshot(&shot);
+}
+
+/// Not blank: the 3D view (left) shows many colours besides the background, and the panel
+/// (right) has text.
+fn check_screenshot(path: &Path) {
+    let (w, h, rgba) = read_png(path);
+    assert!(w >= 320 && h >= 200, "{w}x{h}");
+    let distinct = |x0: u32, x1: u32| {
+        let mut set = std::collections::HashSet::new();
+        for y in 0..h {
+            for x in x0..x1 {
+                let i = 4 * (y * w + x) as usize;
+                set.insert([rgba[i], rgba[i + 1], rgba[i + 2]]);
+            }
+        }
+        set.len()
+    };
+    let left = distinct(0, w / 3);
+    let right = distinct(w - w / 5, w);
+    assert!(left > 50, "3D view nearly blank: {left} colours");
+    assert!(right > 10, "panel nearly blank: {right} colours");
+}
+
+/// `.ci/run` checks the screenshot of its own `tumble view` run through this test:
+/// TUMBLE_CHECK_SCREENSHOT=path cargo test --release --test record_cli check_screenshot_file
+#[test]
+fn check_screenshot_file() {
+    match std::env::var_os("TUMBLE_CHECK_SCREENSHOT") {
+        Some(path) => check_screenshot(Path::new(&path)),
+        None => eprintln!("TUMBLE_CHECK_SCREENSHOT not set: nothing to check"),
+    }
+}
+
+/// Ctrl-C during a recording: the frames rendered so far end up in a valid file under the final
+/// name, no partial file is left, and the exit status says SIGINT (130).
+#[cfg(unix)]
+#[test]
+fn record_survives_ctrl_c() {
+    let dir = scratch("sigint");
+    let out = dir.join("long.gif");
+    let mut child = tumble()
+        .args([
+            "record",
+            "mixed",
+            "--seconds",
+            "600",
+            "--size",
+            "64x48",
+            "-o",
+        ])
+        .arg(&out)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait until some frames went out (the partial file grows), or the process gave up.
+    let partial = dir.join(".long.gif.partial");
+    let start = std::time::Instant::now();
+    while std::fs::metadata(&partial).map_or(0, |m| m.len()) < 2000
+        && start.elapsed().as_secs() < 30
+    {
+        if child.try_wait().unwrap().is_some() {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    if child.try_wait().unwrap().is_none() {
+        unsafe {
+            libc::kill(child.id() as libc::pid_t, libc::SIGINT);
+        }
+    }
+    let output = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    if stderr.contains("no usable GPU adapter") {
+        assert!(!require_gpu(), "TUMBLE_REQUIRE_GPU=1 but: {stderr}");
+        eprintln!("skipping: {stderr}");
+        return;
+    }
+    assert_eq!(output.status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("interrupted"), "{stderr}");
+    let mut options = gif::DecodeOptions::new();
+    options.set_color_output(gif::ColorOutput::RGBA);
+    let mut decoder = options
+        .read_info(std::fs::File::open(&out).unwrap())
+        .unwrap();
+    let mut frames = 0;
+    while decoder.read_next_frame().unwrap().is_some() {
+        frames += 1;
+    }
+    assert!(frames >= 1);
+    no_partial_files(&dir);
+}

@@ -1,0 +1,335 @@
+//! Offscreen rendering checked against the core: the vertices the shader computes equal
+//! `World::current_vertices`, and the picture shows each body in its colour where the core's
+//! geometry says it is visible, and the background where nothing is.
+//!
+//! Needs a wgpu adapter (a software one such as lavapipe will do). Without one the tests print
+//! why and pass, unless TUMBLE_REQUIRE_GPU=1, which makes them fail.
+#![cfg(feature = "viewer")]
+
+use glam::DVec3;
+use tumble::viewer::palette;
+use tumble::viewer::picking::pick;
+use tumble::viewer::{DrawOptions, Image, OffscreenRenderer, OrbitCamera};
+use tumble::{ConstraintsChoice, Settings, World};
+
+fn load(scene: &str) -> World {
+    tumble::scene::load(scene, &ConstraintsChoice::Auto, Settings::default())
+        .expect("built-in scene loads")
+}
+
+fn renderer_or_skip(world: &World, width: u32, height: u32) -> Option<OffscreenRenderer> {
+    match OffscreenRenderer::new(world, width, height) {
+        Ok(r) => Some(r),
+        Err(e) if std::env::var("TUMBLE_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
+            panic!("TUMBLE_REQUIRE_GPU=1 but {e}")
+        }
+        Err(e) => {
+            eprintln!("skipping: {e}");
+            None
+        }
+    }
+}
+
+fn framed(world: &World, width: u32, height: u32) -> OrbitCamera {
+    let mut camera = OrbitCamera::default();
+    camera.frame(world, width as f64 / height as f64);
+    camera
+}
+
+/// Every surface vertex of every body, as the compute pass running the vertex shader's
+/// `body_point` computes it from the instance buffer, against the core's `currV`.
+fn check_vertices(scene: &str, steps: usize) {
+    let mut world = load(scene);
+    for _ in 0..steps {
+        world.step();
+    }
+    let Some(mut r) = renderer_or_skip(&world, 64, 64) else {
+        return;
+    };
+    if !r.gpu.has_compute() {
+        eprintln!(
+            "skipping the vertex readback: {} has no compute shaders",
+            r.gpu.description()
+        );
+        return;
+    }
+    let camera = framed(&world, 64, 64);
+    r.render(&world, &camera, &DrawOptions::default()).unwrap();
+    let gpu_points = r.renderer.gpu_body_points(&r.gpu).unwrap();
+    assert_eq!(gpu_points.len(), world.bodies.len());
+    let mut compared = 0;
+    let mut worst: f64 = 0.0;
+    for (index, body) in world.bodies.iter().enumerate() {
+        let core = world.current_vertices(index);
+        let shape = &world.shapes[body.shape];
+        let on_surface: std::collections::BTreeSet<u32> =
+            shape.triangles.iter().flatten().copied().collect();
+        for (v, expected) in core.iter().enumerate() {
+            let got = gpu_points[index].get(v).copied().flatten();
+            if !on_surface.contains(&(v as u32)) {
+                continue;
+            }
+            let got = got.unwrap_or_else(|| {
+                panic!("body {index} vertex {v}: on the surface but not computed")
+            });
+            let got = DVec3::new(got[0] as f64, got[1] as f64, got[2] as f64);
+            // f32 rounding of the inputs (vertex, quaternion, centre of mass) and a few
+            // operations: a few ulps of the magnitudes involved.
+            let scale = body.position.length() + shape.rest_vertices[v].length() + 1.0;
+            let error = (got - *expected).length();
+            assert!(
+                error <= 1e-6 * scale,
+                "{scene}: body {index} vertex {v}: shader {got} vs core {expected} (error {error:e})"
+            );
+            worst = worst.max(error / scale);
+            compared += 1;
+        }
+    }
+    assert!(compared > 0);
+    eprintln!("{scene}: {compared} vertices agree with the core, worst relative error {worst:e}");
+}
+
+#[test]
+fn shader_vertices_equal_core_vertices_mixed() {
+    check_vertices("mixed", 120);
+}
+
+#[test]
+fn shader_vertices_equal_core_vertices_stress() {
+    check_vertices("stress", 60);
+}
+
+#[test]
+fn shader_vertices_equal_core_vertices_with_constraints() {
+    check_vertices("two-chain", 80);
+}
+
+/// What the core's geometry says pixel (i, j) shows: the body hit by the rays through the
+/// pixel's centre and its 8 neighbours' centres, `Some(None)` for background, `None` when they
+/// disagree (an edge: anti-aliased, not checked).
+fn expected_at(
+    world: &World,
+    camera: &OrbitCamera,
+    i: u32,
+    j: u32,
+    width: u32,
+    height: u32,
+) -> Option<Option<usize>> {
+    let mut seen: Option<Option<usize>> = None;
+    for dj in -1i32..=1 {
+        for di in -1i32..=1 {
+            let (x, y) = (i as f64 + 0.5 + di as f64, j as f64 + 0.5 + dj as f64);
+            let (origin, dir) = camera.ray(x, y, width as f64, height as f64);
+            let hit = pick(world, origin, dir).map(|(b, _)| b);
+            match seen {
+                None => seen = Some(hit),
+                Some(s) if s != hit => return None,
+                _ => {}
+            }
+        }
+    }
+    seen
+}
+
+fn close(a: [u8; 4], b: [u8; 3], tolerance: i32) -> bool {
+    (0..3).all(|k| (a[k] as i32 - b[k] as i32).abs() <= tolerance)
+}
+
+fn body_bytes(world: &World, index: usize) -> [u8; 3] {
+    palette::srgb_bytes(palette::body_srgb(index, world.bodies[index].fixed))
+}
+
+/// Flat-shaded: every body pixel is exactly the body's palette colour, so the picture can be
+/// compared with the core pixel by pixel at the projected centres of the bodies.
+fn check_pixels(scene: &str, steps: usize, width: u32, height: u32) {
+    let mut world = load(scene);
+    for _ in 0..steps {
+        world.step();
+    }
+    let Some(mut r) = renderer_or_skip(&world, width, height) else {
+        return;
+    };
+    let camera = framed(&world, width, height);
+    let options = DrawOptions {
+        grid: false,
+        constraints: false,
+        flat: true,
+        ..DrawOptions::default()
+    };
+    let image: Image = r.render(&world, &camera, &options).unwrap();
+    assert_eq!((image.width, image.height), (width, height));
+    let background = palette::srgb_bytes(palette::BACKGROUND_SRGB);
+
+    let mut bodies_checked = 0;
+    let mut own_colour = 0;
+    for (index, body) in world.bodies.iter().enumerate() {
+        let Some((x, y)) = camera.project(body.position, width as f64, height as f64) else {
+            continue;
+        };
+        if x < 2.0 || y < 2.0 || x >= width as f64 - 2.0 || y >= height as f64 - 2.0 {
+            continue;
+        }
+        let (i, j) = (x as u32, y as u32);
+        let Some(expected) = expected_at(&world, &camera, i, j, width, height) else {
+            continue;
+        };
+        let pixel = image.pixel(i, j);
+        match expected {
+            Some(hit) => {
+                assert!(
+                    close(pixel, body_bytes(&world, hit), 2),
+                    "{scene}: centre of body {index} at ({i}, {j}) should show body {hit} {:?}, got {pixel:?}",
+                    body_bytes(&world, hit)
+                );
+                own_colour += (hit == index) as usize;
+            }
+            None => assert!(
+                close(pixel, background, 1),
+                "{scene}: ({i}, {j}) should be background, got {pixel:?}"
+            ),
+        }
+        bodies_checked += 1;
+    }
+    assert!(
+        own_colour >= world.bodies.len() / 2,
+        "{scene}: only {own_colour} of {} bodies visible at their centres",
+        world.bodies.len()
+    );
+
+    // Background and bodies on a coarse grid of pixels.
+    let mut background_checked = 0;
+    for j in (3..height - 3).step_by(9) {
+        for i in (3..width - 3).step_by(9) {
+            match expected_at(&world, &camera, i, j, width, height) {
+                Some(None) => {
+                    assert!(
+                        close(image.pixel(i, j), background, 1),
+                        "{scene}: ({i}, {j}) should be background, got {:?}",
+                        image.pixel(i, j)
+                    );
+                    background_checked += 1;
+                }
+                Some(Some(hit)) => {
+                    assert!(
+                        close(image.pixel(i, j), body_bytes(&world, hit), 2),
+                        "{scene}: ({i}, {j}) should show body {hit}, got {:?}",
+                        image.pixel(i, j)
+                    );
+                }
+                None => {}
+            }
+        }
+    }
+    assert!(background_checked > 20);
+    eprintln!(
+        "{scene}: {bodies_checked} body centres ({own_colour} showing their own body) and {background_checked} background pixels match the core"
+    );
+}
+
+#[test]
+fn pixels_match_core_geometry_mixed() {
+    check_pixels("mixed", 60, 320, 200);
+}
+
+#[test]
+fn pixels_match_core_geometry_stress() {
+    check_pixels("stress", 40, 400, 300);
+}
+
+/// Lit: body pixels are not the background and are nearer (in chromaticity) to their own
+/// body's colour than to any other body's; the ground grid shows under the bodies.
+#[test]
+fn lit_render_keeps_body_colours() {
+    let mut world = load("mixed");
+    for _ in 0..60 {
+        world.step();
+    }
+    let (width, height) = (320, 200);
+    let Some(mut r) = renderer_or_skip(&world, width, height) else {
+        return;
+    };
+    let camera = framed(&world, width, height);
+    let image = r.render(&world, &camera, &DrawOptions::default()).unwrap();
+    let chroma = |c: [f64; 3]| {
+        let s = c[0] + c[1] + c[2] + 1e-9;
+        [c[0] / s, c[1] / s, c[2] / s]
+    };
+    let distance = |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>();
+    let mut checked = 0;
+    for (index, body) in world.bodies.iter().enumerate() {
+        let Some((x, y)) = camera.project(body.position, width as f64, height as f64) else {
+            continue;
+        };
+        let (i, j) = (x as u32, y as u32);
+        if i < 2 || j < 2 || i >= width - 2 || j >= height - 2 {
+            continue;
+        }
+        if expected_at(&world, &camera, i, j, width, height) != Some(Some(index)) {
+            continue;
+        }
+        let p = image.pixel(i, j);
+        let got = chroma([p[0] as f64, p[1] as f64, p[2] as f64]);
+        let nearest = (0..world.bodies.len())
+            .min_by(|&a, &b| {
+                let ca = body_bytes(&world, a).map(|v| v as f64);
+                let cb = body_bytes(&world, b).map(|v| v as f64);
+                distance(got, chroma(ca)).total_cmp(&distance(got, chroma(cb)))
+            })
+            .unwrap();
+        assert_eq!(
+            nearest, index,
+            "lit pixel {p:?} at the centre of body {index} looks like body {nearest}"
+        );
+        checked += 1;
+    }
+    assert!(checked >= 4, "only {checked} bodies checked");
+    // The ground plane is visible below the scene's centre, and differs from the background.
+    let ground = palette::srgb_bytes(palette::GROUND_SRGB);
+    let ground_pixels = image
+        .rgba
+        .chunks_exact(4)
+        .filter(|p| close([p[0], p[1], p[2], 255], ground, 2))
+        .count();
+    assert!(
+        ground_pixels > (width * height / 20) as usize,
+        "ground plane barely visible: {ground_pixels} pixels"
+    );
+}
+
+#[test]
+fn one_instanced_draw_per_shape() {
+    let world = load("stress");
+    let Some(r) = renderer_or_skip(&world, 32, 32) else {
+        return;
+    };
+    let used: std::collections::BTreeSet<usize> = world.bodies.iter().map(|b| b.shape).collect();
+    assert_eq!(r.renderer.body_draw_calls(), used.len());
+    assert!(used.len() < world.bodies.len() / 4);
+}
+
+#[test]
+fn instance_data_is_the_pose_in_f32() {
+    let mut world = load("mixed");
+    for _ in 0..30 {
+        world.step();
+    }
+    let Some(mut r) = renderer_or_skip(&world, 32, 32) else {
+        return;
+    };
+    let camera = framed(&world, 32, 32);
+    r.render(
+        &world,
+        &camera,
+        &DrawOptions {
+            selected: Some(2),
+            ..DrawOptions::default()
+        },
+    )
+    .unwrap();
+    for (index, body) in world.bodies.iter().enumerate() {
+        let inst = r.renderer.instance_of(index).unwrap();
+        assert_eq!(inst.rotation, body.orientation.as_quat().to_array());
+        assert_eq!(&inst.com[..3], &body.position.as_vec3().to_array()[..]);
+        assert_eq!(inst.color[3], if index == 2 { 1.0 } else { 0.0 });
+    }
+}
