@@ -1,6 +1,6 @@
 //! `tumble run`: headless simulation with a summary.
 
-use super::{SceneArgs, SettingsArgs, progress_bar, write_atomically};
+use super::{SceneArgs, SettingsArgs, progress_bar};
 use clap::Args;
 use serde::Serialize;
 use std::io::Write;
@@ -53,21 +53,28 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let settings = args.settings.settings()?;
     let mut world = args.scene.load(settings.clone())?;
     let energy_start = world.total_energy();
-    let mut trajectory = String::new();
-    let record = |world: &tumble::World, out: &mut String| {
-        use std::fmt::Write;
-        for (i, b) in world.bodies.iter().enumerate() {
-            let (p, q) = (b.position, b.orientation);
-            let _ = writeln!(
-                out,
-                "{},{},{},{},{},{},{},{},{},{}",
-                world.step_count, world.time, i, p.x, p.y, p.z, q.w, q.x, q.y, q.z
-            );
-        }
-    };
-    if args.trajectory.is_some() {
-        trajectory.push_str("step,time,body,x,y,z,qw,qx,qy,qz\n");
-        record(&world, &mut trajectory);
+    // Rows stream into a temporary file, renamed into place when the run ends (also on Ctrl-C).
+    let mut trajectory = args
+        .trajectory
+        .as_deref()
+        .map(tumble::output::AtomicFile::create)
+        .transpose()?;
+    let record =
+        |world: &tumble::World, out: &mut tumble::output::AtomicFile| -> anyhow::Result<()> {
+            let w = out.writer();
+            for (i, b) in world.bodies.iter().enumerate() {
+                let (p, q) = (b.position, b.orientation);
+                writeln!(
+                    w,
+                    "{},{},{},{},{},{},{},{},{},{}",
+                    world.step_count, world.time, i, p.x, p.y, p.z, q.w, q.x, q.y, q.z
+                )?;
+            }
+            Ok(())
+        };
+    if let Some(out) = &mut trajectory {
+        writeln!(out.writer(), "step,time,body,x,y,z,qw,qx,qy,qz")?;
+        record(&world, out)?;
     }
     let bar = progress_bar(args.steps, "simulating");
     let mut summary = RunSummary {
@@ -91,8 +98,13 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         stage_ms: StageTimings::default(),
         settings,
     };
+    tumble::interrupt::install();
+    let mut completed = 0;
     let start = Instant::now();
     for k in 0..args.steps {
+        if tumble::interrupt::interrupted() {
+            break;
+        }
         let stats = world.step();
         summary.contacts += stats.contacts;
         summary.ground_contacts += stats.ground_contacts;
@@ -112,24 +124,25 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
                 .max_constraint_violation
                 .max(world.max_constraint_violation());
         }
-        if args.trajectory.is_some() {
-            record(&world, &mut trajectory);
+        if let Some(out) = &mut trajectory {
+            record(&world, out)?;
         }
         if k % 64 == 0 {
             bar.set_position(k);
         }
+        completed = k + 1;
     }
     bar.finish_and_clear();
     summary.wall_s = start.elapsed().as_secs_f64();
     summary.sim_time = world.time;
     summary.steps_per_s = if summary.wall_s > 0.0 {
-        args.steps as f64 / summary.wall_s
+        completed as f64 / summary.wall_s
     } else {
         f64::INFINITY
     };
     summary.energy_end = world.total_energy();
     summary.finite = world.all_finite() && summary.quarantined.is_empty();
-    let per_step = 1000.0 / args.steps.max(1) as f64;
+    let per_step = 1000.0 / completed.max(1) as f64;
     let t = &mut summary.stage_ms;
     for slot in [
         &mut t.integrate,
@@ -143,13 +156,30 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         *slot *= per_step;
     }
 
-    if let Some(path) = &args.trajectory {
-        write_atomically(path, |w| w.write_all(trajectory.as_bytes()))?;
+    let interrupted = completed < args.steps;
+    summary.steps = completed;
+    if let Some(out) = trajectory {
+        out.commit()?;
+    }
+    if interrupted {
+        eprintln!(
+            "interrupted after {completed} of {} steps{}",
+            args.steps,
+            if args.trajectory.is_some() {
+                "; the trajectory holds the steps completed"
+            } else {
+                ""
+            }
+        );
     }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
         print_summary(&summary);
+    }
+    if interrupted {
+        // The conventional status of a run stopped by SIGINT.
+        std::process::exit(130);
     }
     Ok(())
 }

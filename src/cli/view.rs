@@ -132,7 +132,7 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
             ..DrawOptions::default()
         },
     };
-    tumble::viewer::signal::install();
+    tumble::interrupt::install();
     let bar = super::progress_bar(
         ((args.seconds * args.fps).round() as u64).max(1),
         "recording",
@@ -141,7 +141,7 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
         &mut world,
         &options,
         &mut |done, _| bar.set_position(done),
-        &tumble::viewer::signal::interrupted,
+        &tumble::interrupt::interrupted,
     )?;
     bar.finish_and_clear();
     let frames = report.frames.max(1) as f64;

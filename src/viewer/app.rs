@@ -103,7 +103,7 @@ fn build_event_loop(display: Display) -> anyhow::Result<EventLoop<()>> {
 pub fn run(world: World, options: ViewOptions) -> anyhow::Result<()> {
     let display = choose_display()?;
     let event_loop = build_event_loop(display)?;
-    super::signal::install();
+    crate::interrupt::install();
     let mut app = App::new(world, options);
     event_loop
         .run_app(&mut app)
@@ -452,7 +452,7 @@ impl App {
             .last_frame
             .map_or(0.0, |t| frame_start.duration_since(t).as_secs_f64());
         self.last_frame = Some(frame_start);
-        if super::signal::interrupted() {
+        if crate::interrupt::interrupted() {
             self.quitting = true;
             event_loop.exit();
         }
@@ -1083,7 +1083,7 @@ impl ApplicationHandler for App {
         if self.quitting {
             return;
         }
-        if super::signal::interrupted() {
+        if crate::interrupt::interrupted() {
             self.quitting = true;
             event_loop.exit();
             return;

@@ -17,7 +17,6 @@ pub mod picking;
 pub mod record;
 pub mod renderer;
 pub mod session;
-pub mod signal;
 
 pub use app::{ViewOptions, run as run_viewer};
 pub use camera::OrbitCamera;

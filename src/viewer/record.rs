@@ -5,37 +5,13 @@ use super::camera::OrbitCamera;
 use super::gpu::Image;
 use super::renderer::{DrawOptions, OffscreenRenderer};
 use crate::World;
+pub use crate::output::{partial_path, write_file_atomically};
 use anyhow::{Context, bail};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::thread::JoinHandle;
 use std::time::Instant;
-
-/// Writes `path` through a temporary sibling renamed into place at the end.
-pub fn write_file_atomically(
-    path: &Path,
-    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
-) -> anyhow::Result<()> {
-    let tmp = partial_path(path);
-    let file =
-        std::fs::File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
-    let mut writer = std::io::BufWriter::new(file);
-    write(&mut writer)
-        .and_then(|_| writer.flush())
-        .with_context(|| format!("cannot write {}", tmp.display()))?;
-    drop(writer);
-    std::fs::rename(&tmp, path)
-        .with_context(|| format!("cannot move {} to {}", tmp.display(), path.display()))
-}
-
-fn partial_path(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "out".into());
-    path.with_file_name(format!(".{name}.partial"))
-}
 
 /// What an output path means.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

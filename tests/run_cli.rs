@@ -1,0 +1,85 @@
+//! `tumble run`: JSON summary against the physics, and a trajectory that survives Ctrl-C.
+use std::process::Command;
+
+fn tumble() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_tumble"))
+}
+
+#[test]
+fn json_summary_has_the_documented_fields() {
+    let out = tumble()
+        .args(["run", "two-chain", "--steps", "50", "--json"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for key in [
+        "steps",
+        "sim_time",
+        "wall_s",
+        "steps_per_s",
+        "bodies",
+        "contacts",
+        "constraint_visits",
+        "budget_hits",
+        "energy_start",
+        "energy_end",
+        "max_penetration",
+        "max_constraint_violation",
+        "finite",
+    ] {
+        assert!(v.get(key).is_some(), "missing {key}");
+    }
+    assert_eq!(v["steps"], 50);
+    assert!(
+        (v["sim_time"].as_f64().unwrap() - 1.0).abs() < 1e-9,
+        "50 steps of 0.02 s"
+    );
+    assert_eq!(v["bodies"], 18);
+    assert_eq!(v["finite"], true);
+}
+
+#[cfg(unix)]
+#[test]
+fn trajectory_survives_ctrl_c() {
+    let dir = std::env::temp_dir().join(format!("tumble-run-sigint-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("trajectory.csv");
+    let child = tumble()
+        .args(["run", "pile-500", "--steps", "100000000", "--trajectory"])
+        .arg(&out)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    // SAFETY: sending a signal to our own child process.
+    unsafe {
+        libc::kill(child.id() as libc::pid_t, libc::SIGINT);
+    }
+    let output = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(130), "{stderr}");
+    assert!(stderr.contains("interrupted after"), "{stderr}");
+    // Every completed step is there, whole: step 0 plus each step, 504 bodies each.
+    let text = std::fs::read_to_string(&out).unwrap();
+    let rows: Vec<&str> = text.lines().skip(1).collect();
+    assert!(
+        rows.len() >= 2 * 504 && rows.len() % 504 == 0,
+        "{} rows",
+        rows.len()
+    );
+    for row in &rows {
+        assert_eq!(row.split(',').count(), 10, "incomplete row {row}");
+    }
+    let names: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names.len(), 1, "left behind: {names:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
