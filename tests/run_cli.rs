@@ -69,7 +69,7 @@ fn trajectory_survives_ctrl_c() {
     let text = std::fs::read_to_string(&out).unwrap();
     let rows: Vec<&str> = text.lines().skip(1).collect();
     assert!(
-        rows.len() >= 2 * 504 && rows.len() % 504 == 0,
+        rows.len() >= 2 * 504 && rows.len().is_multiple_of(504),
         "{} rows",
         rows.len()
     );
