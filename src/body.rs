@@ -28,11 +28,6 @@ pub struct RigidBody {
     /// Set when the body's state went non-finite or absurd: it is frozen at its last good state
     /// and ignored by contacts and constraints.
     pub quarantined: bool,
-    /// With the `sleep` setting: the body rested long enough and is no longer integrated until
-    /// a contact or a constraint wakes it.
-    pub asleep: bool,
-    /// Seconds the body has been slower than the sleep thresholds.
-    pub rest_time: f64,
 }
 
 impl RigidBody {
@@ -70,25 +65,12 @@ impl RigidBody {
             inertia,
             inverse_inertia,
             quarantined: false,
-            asleep: false,
-            rest_time: 0.0,
         }
     }
 
     /// Whether contacts and constraints may move this body.
     pub fn is_dynamic(&self) -> bool {
         !self.fixed && !self.quarantined
-    }
-
-    /// Whether the integrator and the ground advance this body this step.
-    pub fn is_awake(&self) -> bool {
-        self.is_dynamic() && !self.asleep
-    }
-
-    /// Puts a sleeping body back into the simulation.
-    pub fn wake(&mut self) {
-        self.asleep = false;
-        self.rest_time = 0.0;
     }
 
     pub fn rotation(&self) -> DMat3 {

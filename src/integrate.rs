@@ -11,7 +11,7 @@ pub fn integrate_bodies(bodies: &mut [RigidBody], settings: &Settings, dt: f64) 
     bodies
         .par_iter_mut()
         .with_min_len(256)
-        .filter(|b| b.is_awake())
+        .filter(|b| b.is_dynamic())
         .for_each(|body| integrate_body(body, settings, dt));
 }
 

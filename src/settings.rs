@@ -59,9 +59,6 @@ pub struct Settings {
     /// Contacts act at the centroid of the contact patch (all penetrating points) rather than at
     /// one deepest point: resting faces get no spurious torque.
     pub contact_patches: bool,
-    /// Bodies at rest for a while sleep (not integrated, no ground test) until a contact or a
-    /// constraint wakes them.
-    pub sleep: bool,
     /// Substeps per step, each of `time_step / substeps` (Macklin et al. 2019).
     pub substeps: u32,
     pub rotation_integrator: RotationIntegrator,
@@ -80,7 +77,6 @@ impl Default for Settings {
             skip_separating_contacts: false,
             restitution_threshold: 0.0,
             contact_patches: false,
-            sleep: false,
             substeps: 1,
             rotation_integrator: RotationIntegrator::Coursework,
             broad_phase: BroadPhase::Grid,

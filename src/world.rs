@@ -16,12 +16,6 @@ use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 use std::time::Instant;
 
-/// Sleep thresholds (with the `sleep` setting): a body slower than these for `SLEEP_AFTER`
-/// seconds sleeps. The linear threshold sits above the `g dt` a resting body gains each step.
-pub const SLEEP_LINEAR_SPEED: f64 = 0.5;
-pub const SLEEP_ANGULAR_SPEED: f64 = 0.2;
-pub const SLEEP_AFTER: f64 = 0.5;
-
 /// Speeds above this are treated as a blown-up state and quarantined.
 pub const ABSURD_SPEED: f64 = 1e12;
 
@@ -160,9 +154,6 @@ impl World {
         stats.timings.ground = ground_time;
         if !self.constraints.is_empty() {
             let start = Instant::now();
-            if settings.sleep {
-                self.wake_constrained_neighbours();
-            }
             let report = solve_constraints(
                 &self.constraints,
                 &self.constraints_by_body,
@@ -179,9 +170,6 @@ impl World {
         let mut finalize = 0.0;
         timed(&mut finalize, || {
             self.quarantine_blown_up(&mut stats);
-            if settings.sleep {
-                self.update_sleep(dt);
-            }
         });
         stats.timings.finalize = finalize;
         stats
@@ -189,8 +177,7 @@ impl World {
 
     fn collides(&self, i: usize, j: usize) -> bool {
         let (a, b) = (&self.bodies[i], &self.bodies[j]);
-        let resting = |x: &RigidBody| x.fixed || x.asleep;
-        !(a.quarantined || b.quarantined || resting(a) && resting(b))
+        !(a.quarantined || b.quarantined || a.fixed && b.fixed)
     }
 
     fn contact_between(&self, i: usize, j: usize) -> Option<Contact> {
@@ -217,12 +204,6 @@ impl World {
         stats: &mut StepStats,
     ) {
         let (a, b) = bodies_pair_mut(&mut self.bodies, i, j);
-        // A contact with an awake body wakes a sleeping one.
-        for body in [&mut *a, &mut *b] {
-            if body.asleep {
-                body.wake();
-            }
-        }
         resolve_contact(a, b, contact, params);
         stats.contacts += 1;
         stats.max_penetration = stats.max_penetration.max(contact.depth);
@@ -294,14 +275,11 @@ impl World {
         self.grid.rebuild(&self.proxies, &active);
         let candidates = {
             let this = &*self;
-            // Fixedness and quarantine cannot change during the stage; sleep can, so it is
-            // checked when a pair is processed.
-            let static_pair = |i: usize, j: usize| {
-                let (a, b) = (&this.bodies[i], &this.bodies[j]);
-                !(a.quarantined || b.quarantined || a.fixed && b.fixed)
-            };
-            this.grid
-                .overlapping_pairs(&this.proxies, static_pair, &mut stats.pairs_tested)
+            this.grid.overlapping_pairs(
+                &this.proxies,
+                |i, j| this.collides(i, j),
+                &mut stats.pairs_tested,
+            )
         };
         stats.timings.broad_phase += start.elapsed().as_secs_f64();
 
@@ -377,17 +355,14 @@ impl World {
                 }
             };
             let Some(contact) = contact else { continue };
-            let woke = [i, j].map(|b| self.bodies[b].asleep);
             self.apply_contact(i, j, &contact, params, stats);
-            for (k, b) in [i, j].into_iter().enumerate() {
+            for b in [i, j] {
                 if !self.bodies[b].is_dynamic() {
                     continue;
                 }
                 moved[b] = true;
                 self.refresh_aabb(b);
-                // A body that woke may now collide with sleeping neighbours that were no
-                // candidates' concern before: look it up as if it had escaped.
-                if contains(&self.proxies[b], &self.aabbs[b]) && !woke[k] {
+                if contains(&self.proxies[b], &self.aabbs[b]) {
                     continue;
                 }
                 self.proxies[b] = self.proxy_of(b);
@@ -429,7 +404,7 @@ impl World {
     fn resolve_ground_contacts(&mut self, params: &ContactParams, stats: &mut StepStats) {
         let mut ground = ground_body();
         for index in 0..self.bodies.len() {
-            if !self.bodies[index].is_awake() || self.aabbs[index].min.y > 0.0 {
+            if !self.bodies[index].is_dynamic() || self.aabbs[index].min.y > 0.0 {
                 continue;
             }
             let body = &self.bodies[index];
@@ -464,40 +439,6 @@ impl World {
             body.angular_velocity = DVec3::ZERO;
             body.quarantined = true;
             stats.quarantined.push(index);
-        }
-    }
-
-    /// A sleeping body tied by a constraint to an awake movable body wakes up (repeatedly, so a
-    /// whole chain wakes together).
-    fn wake_constrained_neighbours(&mut self) {
-        let mut changed = true;
-        while changed {
-            changed = false;
-            for c in &self.constraints {
-                let (a, b) = (&self.bodies[c.body1], &self.bodies[c.body2]);
-                let (wake1, wake2) = (a.asleep && b.is_awake(), b.asleep && a.is_awake());
-                if wake1 {
-                    self.bodies[c.body1].wake();
-                }
-                if wake2 {
-                    self.bodies[c.body2].wake();
-                }
-                changed |= wake1 || wake2;
-            }
-        }
-    }
-
-    /// Bodies slower than the sleep thresholds for `SLEEP_AFTER` seconds fall asleep.
-    fn update_sleep(&mut self, dt: f64) {
-        for body in self.bodies.iter_mut().filter(|b| b.is_awake()) {
-            let slow = body.linear_velocity.length() < SLEEP_LINEAR_SPEED
-                && body.angular_velocity.length() < SLEEP_ANGULAR_SPEED;
-            body.rest_time = if slow { body.rest_time + dt } else { 0.0 };
-            if body.rest_time >= SLEEP_AFTER {
-                body.asleep = true;
-                body.linear_velocity = DVec3::ZERO;
-                body.angular_velocity = DVec3::ZERO;
-            }
         }
     }
 

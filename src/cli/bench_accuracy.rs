@@ -71,13 +71,6 @@ pub fn combinations() -> Vec<(&'static str, Settings)> {
             },
         ),
         (
-            "sleep",
-            Settings {
-                sleep: true,
-                ..d.clone()
-            },
-        ),
-        (
             "substeps_4",
             Settings {
                 substeps: 4,

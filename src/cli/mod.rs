@@ -41,9 +41,6 @@ pub struct SettingsArgs {
     /// Contacts act at the centroid of the contact patch instead of one deepest point.
     #[arg(long)]
     pub contact_patches: bool,
-    /// Bodies at rest sleep until a contact or constraint wakes them.
-    #[arg(long)]
-    pub sleep: bool,
     /// Substeps per step.
     #[arg(long, value_name = "N")]
     pub substeps: Option<u32>,
@@ -91,7 +88,6 @@ impl SettingsArgs {
         }
         s.skip_separating_contacts |= self.skip_separating_contacts;
         s.contact_patches |= self.contact_patches;
-        s.sleep |= self.sleep;
         if let Some(v) = self.restitution_threshold {
             anyhow::ensure!(
                 v.is_finite() && v >= 0.0,

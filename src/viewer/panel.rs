@@ -240,7 +240,6 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
         skip_separating_contacts,
         restitution_threshold,
         contact_patches,
-        sleep,
         substeps,
         rotation_integrator,
         broad_phase,
@@ -277,9 +276,6 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
         .on_hover_text(
             "Contacts act at the centroid of the contact patch, not at one deepest point",
         );
-    ui.checkbox(sleep, "sleep").on_hover_text(
-        "Bodies at rest for a while sleep until a contact or a constraint wakes them",
-    );
     enum_choice(ui, "rotation integrator", rotation_integrator);
     enum_choice(ui, "broad phase", broad_phase);
     enum_choice(ui, "constraint schedule", constraint_schedule);
@@ -398,10 +394,6 @@ fn statistics_ui(ui: &mut egui::Ui, session: &Session, info: &FrameInfo) {
                 }
             }
             stat(ui, "total energy", format!("{:.6e}", world.total_energy()));
-            let asleep = world.bodies.iter().filter(|b| b.asleep).count();
-            if world.settings.sleep || asleep > 0 {
-                stat(ui, "asleep", format!("{asleep}"));
-            }
             let quarantined = world.bodies.iter().filter(|b| b.quarantined).count();
             if quarantined > 0 {
                 stat(
@@ -484,9 +476,6 @@ fn selection_ui(ui: &mut egui::Ui, session: &Session, selected: Option<usize>) {
             stat(ui, "velocity", v3(body.linear_velocity));
             stat(ui, "speed", format!("{:.4}", body.linear_velocity.length()));
             stat(ui, "angular velocity", v3(body.angular_velocity));
-            if body.asleep {
-                stat(ui, "state", "asleep");
-            }
             if body.quarantined {
                 stat(
                     ui,

@@ -588,9 +588,6 @@ impl Renderer {
             let p = body.position.as_vec3();
             let color = if body.quarantined {
                 palette::linear(palette::QUARANTINED_SRGB)
-            } else if body.asleep {
-                // Sleeping bodies (the `sleep` setting) are dimmed.
-                self.base_colors[index as usize].map(|c| c * 0.35)
             } else {
                 self.base_colors[index as usize]
             };
