@@ -49,6 +49,8 @@ enum BenchCommand {
     Scale(cli::bench_scale::ScaleArgs),
     /// Error against run time per scenario, setting combination and time step.
     Accuracy(cli::bench_accuracy::AccuracyArgs),
+    /// The tower and the chains for 100,000 steps: drift, violation, energy.
+    Soak(cli::bench_soak::SoakArgs),
 }
 
 fn main() -> ExitCode {
@@ -57,6 +59,7 @@ fn main() -> ExitCode {
         Some(Command::Run(args)) => cli::run::run(&args),
         Some(Command::Bench(BenchCommand::Scale(args))) => cli::bench_scale::run(&args),
         Some(Command::Bench(BenchCommand::Accuracy(args))) => cli::bench_accuracy::run(&args),
+        Some(Command::Bench(BenchCommand::Soak(args))) => cli::bench_soak::run(&args),
         Some(Command::Scenes) => {
             for (name, file) in tumble::BUILTIN_SCENES {
                 println!("{name:16} scenes/{file}");

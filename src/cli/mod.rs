@@ -3,6 +3,7 @@
 pub mod alloc;
 pub mod bench_accuracy;
 pub mod bench_scale;
+pub mod bench_soak;
 pub mod plot;
 #[cfg(feature = "compare-rapier")]
 pub mod rapier;
