@@ -375,20 +375,17 @@ fn pendulum(settings: Settings) -> Measured {
         pivot + length * DVec3::new(theta0.sin(), -theta0.cos(), 0.0),
         DQuat::IDENTITY,
     );
-    let constraints = [false, true]
-        .into_iter()
-        .map(|is_upper| DistanceConstraint {
-            body1: 0,
-            body2: 1,
-            vertex1: centre,
-            vertex2: centre,
-            local1: DVec3::ZERO,
-            local2: DVec3::ZERO,
-            reference: length,
-            is_upper,
-            rest_length: length,
-        })
-        .collect();
+    let bodies = [anchor, bob];
+    let constraints = DistanceConstraint::lower_and_upper(
+        &bodies,
+        std::slice::from_ref(&s),
+        (0, centre),
+        (1, centre),
+        1.0,
+        1.0,
+    )
+    .to_vec();
+    let [anchor, bob] = bodies;
     let g = settings.gravity.length();
     let mut world = World::new(
         vec![s],

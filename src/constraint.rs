@@ -3,6 +3,7 @@
 
 use crate::body::RigidBody;
 use crate::settings::ConstraintSchedule;
+use crate::shape::Shape;
 use glam::DVec3;
 
 /// One inequality on the distance between two body-space points: `|p1 - p2| >= reference`
@@ -25,6 +26,34 @@ pub struct DistanceConstraint {
 }
 
 impl DistanceConstraint {
+    /// The two inequalities of one constraint record: the distance between vertex `vertex1` of
+    /// body `body1` and vertex `vertex2` of body `body2` stays within `[lower, upper]` times its
+    /// value at the bodies' current poses.
+    pub fn lower_and_upper(
+        bodies: &[RigidBody],
+        shapes: &[Shape],
+        (body1, vertex1): (usize, usize),
+        (body2, vertex2): (usize, usize),
+        lower: f64,
+        upper: f64,
+    ) -> [DistanceConstraint; 2] {
+        let local1 = shapes[bodies[body1].shape].rest_vertices[vertex1];
+        let local2 = shapes[bodies[body2].shape].rest_vertices[vertex2];
+        let rest_length =
+            (bodies[body1].world_point(local1) - bodies[body2].world_point(local2)).length();
+        [(lower, false), (upper, true)].map(|(bound, is_upper)| DistanceConstraint {
+            body1,
+            body2,
+            vertex1,
+            vertex2,
+            local1,
+            local2,
+            reference: bound * rest_length,
+            is_upper,
+            rest_length,
+        })
+    }
+
     /// Current constrained points in world space.
     pub fn points(&self, bodies: &[RigidBody]) -> (DVec3, DVec3) {
         (
@@ -47,6 +76,19 @@ impl DistanceConstraint {
         } else {
             (-c).max(0.0)
         }
+    }
+
+    /// Current points, unit direction from point 2 to point 1, and distance; None when the
+    /// points coincide (no direction: no correction rather than NaN) or are not finite.
+    fn direction(
+        &self,
+        body1: &RigidBody,
+        body2: &RigidBody,
+    ) -> Option<(DVec3, DVec3, DVec3, f64)> {
+        let p1 = body1.world_point(self.local1);
+        let p2 = body2.world_point(self.local2);
+        let distance = (p1 - p2).length();
+        (distance > 0.0 && distance.is_finite()).then(|| (p1, p2, (p1 - p2) / distance, distance))
     }
 
     fn position_valid(&self, c: f64, tolerance: f64) -> bool {
@@ -82,12 +124,11 @@ pub fn resolve_position(
     body2: &mut RigidBody,
     tolerance: f64,
 ) -> bool {
-    let p1 = body1.world_point(constraint.local1);
-    let p2 = body2.world_point(constraint.local2);
-    let delta = p1 - p2;
-    let distance = delta.length();
+    let Some((_, _, n, distance)) = constraint.direction(body1, body2) else {
+        return false;
+    };
     let c = distance - constraint.reference;
-    if constraint.position_valid(c, tolerance) || distance == 0.0 || !distance.is_finite() {
+    if constraint.position_valid(c, tolerance) {
         return false;
     }
     let inverse_mass1 = body1.effective_inverse_mass();
@@ -96,7 +137,6 @@ pub fn resolve_position(
     if total == 0.0 {
         return false;
     }
-    let n = delta / distance;
     body1.position -= (inverse_mass1 / total) * c * n;
     body2.position += (inverse_mass2 / total) * c * n;
     true
@@ -110,14 +150,9 @@ pub fn resolve_velocity(
     body2: &mut RigidBody,
     tolerance: f64,
 ) -> bool {
-    let p1 = body1.world_point(constraint.local1);
-    let p2 = body2.world_point(constraint.local2);
-    let delta = p1 - p2;
-    let distance = delta.length();
-    if distance == 0.0 || !distance.is_finite() {
+    let Some((p1, p2, n, _)) = constraint.direction(body1, body2) else {
         return false;
-    }
-    let n = delta / distance;
+    };
     let arm1_n = (p1 - body1.position).cross(n);
     let arm2_n = (p2 - body2.position).cross(n);
     let jv = n.dot(body1.linear_velocity) + arm1_n.dot(body1.angular_velocity)

@@ -198,7 +198,6 @@ pub fn chain(n: usize, settings: Settings) -> World {
     let shapes = vec![shape_of(&assets::cuboid(DVec3::new(2.0, 1.0, 1.5)))];
     let chains = (n / 10).max(1);
     let side = (chains as f64).sqrt().ceil() as usize;
-    let (bottom, top) = (shapes[0].rest_vertices[0], shapes[0].rest_vertices[2]); // (-,-,-) and (-,+,-)
     let mut bodies = Vec::with_capacity(chains * 10);
     let mut constraints = Vec::new();
     let mut rng = Rng::new(0x5EED_0003);
@@ -217,22 +216,16 @@ pub fn chain(n: usize, settings: Settings) -> World {
                 DQuat::IDENTITY,
             ));
             if k > 0 {
+                // Bottom corner (vertex 0) of the upper box to the top corner (vertex 2) below.
                 let (i, j) = (bodies.len() - 2, bodies.len() - 1);
-                let rest_length =
-                    (bodies[i].world_point(bottom) - bodies[j].world_point(top)).length();
-                for (bound, is_upper) in [(0.9, false), (1.1, true)] {
-                    constraints.push(DistanceConstraint {
-                        body1: i,
-                        body2: j,
-                        vertex1: 0,
-                        vertex2: 2,
-                        local1: bottom,
-                        local2: top,
-                        reference: bound * rest_length,
-                        is_upper,
-                        rest_length,
-                    });
-                }
+                constraints.extend(DistanceConstraint::lower_and_upper(
+                    &bodies,
+                    &shapes,
+                    (i, 0),
+                    (j, 2),
+                    0.9,
+                    1.1,
+                ));
             }
         }
     }

@@ -7,6 +7,10 @@ use crate::shape::Shape;
 use glam::DVec3;
 use parry3d_f64::math::Pose;
 
+fn pose(body: &RigidBody) -> Pose {
+    Pose::from_parts(body.position, body.orientation)
+}
+
 /// Contact between the hulls of two bodies at their current poses, if they touch or overlap.
 /// parry's `normal1` points from shape 1 to shape 2, `-dist` is the depth and `point2` lies on
 /// shape 2: exactly the coursework's `contactNormal`, `depth` and `penPosition`.
@@ -16,8 +20,7 @@ pub fn body_contact(
     body2: &RigidBody,
     shape2: &Shape,
 ) -> Option<Contact> {
-    let pose1 = Pose::from_parts(body1.position, body1.orientation);
-    let pose2 = Pose::from_parts(body2.position, body2.orientation);
+    let (pose1, pose2) = (pose(body1), pose(body2));
     let contact = parry3d_f64::query::contact(&pose1, &shape1.hull, &pose2, &shape2.hull, 0.0)
         .ok()
         .flatten()?;
@@ -44,9 +47,7 @@ pub fn body_contact_patch(
     shape2: &Shape,
 ) -> Option<Contact> {
     use parry3d_f64::query::{ContactManifold, DefaultQueryDispatcher, PersistentQueryDispatcher};
-    let pose1 = Pose::from_parts(body1.position, body1.orientation);
-    let pose2 = Pose::from_parts(body2.position, body2.orientation);
-    let pose12 = pose1.inv_mul(&pose2);
+    let pose12 = pose(body1).inv_mul(&pose(body2));
     let mut manifolds: Vec<ContactManifold<(), ()>> = Vec::new();
     DefaultQueryDispatcher
         .contact_manifolds(

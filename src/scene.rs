@@ -413,22 +413,14 @@ fn build_constraints(
             ));
             continue;
         }
-        let local1 = shapes[b1.shape].rest_vertices[r.vertex1];
-        let local2 = shapes[b2.shape].rest_vertices[r.vertex2];
-        let rest_length = (b1.world_point(local1) - b2.world_point(local2)).length();
-        for (bound, is_upper) in [(r.lower, false), (r.upper, true)] {
-            out.push(DistanceConstraint {
-                body1: r.body1,
-                body2: r.body2,
-                vertex1: r.vertex1,
-                vertex2: r.vertex2,
-                local1,
-                local2,
-                reference: bound * rest_length,
-                is_upper,
-                rest_length,
-            });
-        }
+        out.extend(DistanceConstraint::lower_and_upper(
+            bodies,
+            shapes,
+            (r.body1, r.vertex1),
+            (r.body2, r.vertex2),
+            r.lower,
+            r.upper,
+        ));
     }
     Ok(out)
 }

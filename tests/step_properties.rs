@@ -130,24 +130,14 @@ fn build(specs: &[BodySpec], links: &[(usize, usize, f64, f64)], settings: Setti
         if i == j || (bodies[i].fixed && bodies[j].fixed) {
             continue;
         }
-        let (l1, l2) = (
-            shapes[bodies[i].shape].rest_vertices[0],
-            shapes[bodies[j].shape].rest_vertices[0],
-        );
-        let rest_length = (bodies[i].world_point(l1) - bodies[j].world_point(l2)).length();
-        for (bound, is_upper) in [(lower, false), (lower + width, true)] {
-            constraints.push(tumble::constraint::DistanceConstraint {
-                body1: i,
-                body2: j,
-                vertex1: 0,
-                vertex2: 0,
-                local1: l1,
-                local2: l2,
-                reference: bound * rest_length,
-                is_upper,
-                rest_length,
-            });
-        }
+        constraints.extend(tumble::constraint::DistanceConstraint::lower_and_upper(
+            &bodies,
+            &shapes,
+            (i, 0),
+            (j, 0),
+            lower,
+            lower + width,
+        ));
     }
     World::new(
         shapes,

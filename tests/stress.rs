@@ -119,7 +119,6 @@ fn long_chain_with_tight_bounds_stays_bounded_and_reports_its_budget() {
     assert!(worst < 0.5, "worst relative violation {worst}");
     // One chain of 100 links with bounds 0.99..1.01.
     let s = tumble::Shape::from_tet_mesh(&assets::cuboid(DVec3::new(1.0, 0.5, 0.5))).unwrap();
-    let (bottom, top) = (s.rest_vertices[0], s.rest_vertices[2]);
     let mut bodies = Vec::new();
     let mut constraints = Vec::new();
     for k in 0..100 {
@@ -133,21 +132,14 @@ fn long_chain_with_tight_bounds_stays_bounded_and_reports_its_budget() {
             DQuat::IDENTITY,
         ));
         if k > 0 {
-            let (i, j) = (k - 1, k);
-            let rest_length = (bodies[i].world_point(bottom) - bodies[j].world_point(top)).length();
-            for (bound, is_upper) in [(0.99, false), (1.01, true)] {
-                constraints.push(tumble::constraint::DistanceConstraint {
-                    body1: i,
-                    body2: j,
-                    vertex1: 0,
-                    vertex2: 2,
-                    local1: bottom,
-                    local2: top,
-                    reference: bound * rest_length,
-                    is_upper,
-                    rest_length,
-                });
-            }
+            constraints.extend(tumble::constraint::DistanceConstraint::lower_and_upper(
+                &bodies,
+                std::slice::from_ref(&s),
+                (k - 1, 0),
+                (k, 2),
+                0.99,
+                1.01,
+            ));
         }
     }
     for (budget, bound) in [(10_000, 20.0), (50_000, 1.0)] {
