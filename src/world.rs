@@ -474,17 +474,18 @@ impl World {
     /// Detection only; nothing is resolved.
     pub fn current_contacts(&self) -> Vec<(usize, Option<usize>, Contact)> {
         let aabbs = self.body_aabbs();
-        let mut out = Vec::new();
-        for i in 0..self.bodies.len() {
-            for j in i + 1..self.bodies.len() {
-                if self.collides(i, j)
-                    && aabbs[i].overlaps(&aabbs[j])
-                    && let Some(c) = self.contact_between(i, j)
-                {
-                    out.push((i, Some(j), c));
-                }
-            }
-            let body = &self.bodies[i];
+        let active: Vec<bool> = self.bodies.iter().map(|b| !b.quarantined).collect();
+        let mut grid = Grid::new(self.grid.cell_size());
+        grid.rebuild(&aabbs, &active);
+        let pairs = grid.overlapping_pairs(&aabbs, |i, j| self.collides(i, j), &mut 0);
+        let mut out: Vec<(usize, Option<usize>, Contact)> = pairs
+            .into_iter()
+            .filter_map(|(i, j)| {
+                let (i, j) = (i as usize, j as usize);
+                self.contact_between(i, j).map(|c| (i, Some(j), c))
+            })
+            .collect();
+        for (i, body) in self.bodies.iter().enumerate() {
             if body.is_dynamic()
                 && aabbs[i].min.y <= 0.0
                 && let Some(c) = ground_contact(
