@@ -6,7 +6,9 @@ use crate::broad_phase::{Aabb, Grid, body_aabb, typical_cell_size};
 use crate::constraint::{DistanceConstraint, pair_mut as bodies_pair_mut, solve_constraints};
 use crate::contact::{Contact, ContactParams, resolve_contact};
 use crate::integrate::integrate_bodies;
-use crate::narrow_phase::{body_contact, body_contact_patch, ground_contact};
+use crate::narrow_phase::{
+    body_contact, body_contact_patch, ground_contact, oriented_boxes_overlap,
+};
 use crate::settings::{BroadPhase, Settings};
 use crate::shape::Shape;
 use crate::stats::StepStats;
@@ -182,12 +184,16 @@ impl World {
 
     fn contact_between(&self, i: usize, j: usize) -> Option<Contact> {
         let (a, b) = (&self.bodies[i], &self.bodies[j]);
+        let (shape_a, shape_b) = (&self.shapes[a.shape], &self.shapes[b.shape]);
+        if !oriented_boxes_overlap(a, shape_a, b, shape_b) {
+            return None;
+        }
         let detect = if self.settings.contact_patches {
             body_contact_patch
         } else {
             body_contact
         };
-        detect(a, &self.shapes[a.shape], b, &self.shapes[b.shape])
+        detect(a, shape_a, b, shape_b)
     }
 
     fn refresh_aabb(&mut self, index: usize) {

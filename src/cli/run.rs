@@ -35,6 +35,8 @@ pub struct RunSummary {
     pub bodies: usize,
     pub constraints: usize,
     pub contacts: usize,
+    /// Pairs handed to the narrow phase (boxes overlapping).
+    pub narrow_phase_queries: usize,
     pub ground_contacts: usize,
     pub constraint_visits: usize,
     pub budget_hits: u64,
@@ -86,6 +88,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         bodies: world.bodies.len(),
         constraints: world.constraints.len(),
         contacts: 0,
+        narrow_phase_queries: 0,
         ground_contacts: 0,
         constraint_visits: 0,
         budget_hits: 0,
@@ -107,6 +110,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         }
         let stats = world.step();
         summary.contacts += stats.contacts;
+        summary.narrow_phase_queries += stats.narrow_phase_queries;
         summary.ground_contacts += stats.ground_contacts;
         summary.constraint_visits += stats.constraint_visits;
         summary.budget_hits += stats.budget_hit as u64;
