@@ -191,12 +191,7 @@ pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
     std::fs::write(&csv_path, csv)?;
     let mut plots = Vec::new();
     for (scenario_name, by_combo) in &results {
-        let scenario = scenarios
-            .iter()
-            .copied()
-            .find(|s| scenario_name.starts_with(s.name()))
-            .unwrap_or(Scenario::FreeFall);
-        let metric = scenario.primary_metric();
+        let metric = primary_metric_of(scenario_name);
         let mut series = Vec::new();
         let mut all_points = Vec::new();
         for (combo, by_dt) in by_combo {
@@ -233,12 +228,7 @@ pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
         return Ok(());
     }
     for (scenario_name, by_combo) in &results {
-        let scenario = scenarios
-            .iter()
-            .copied()
-            .find(|s| scenario_name.starts_with(s.name()))
-            .unwrap_or(Scenario::FreeFall);
-        let metric = scenario.primary_metric();
+        let metric = primary_metric_of(scenario_name);
         println!("\n{scenario_name} ({metric}; wall ms per simulated second in brackets)");
         print!("{:<24}", "combination \\ dt");
         for dt in &dts {
@@ -270,6 +260,14 @@ pub fn run(args: &AccuracyArgs) -> anyhow::Result<()> {
         args.out.display()
     );
     Ok(())
+}
+
+/// The plotted metric of a result row's scenario ("bounce_e0.8" is a bounce).
+fn primary_metric_of(scenario_name: &str) -> &'static str {
+    Scenario::ALL
+        .iter()
+        .find(|s| scenario_name.starts_with(s.name()))
+        .map_or("error", |s| s.primary_metric())
 }
 
 /// Points not dominated in (time, error): nothing else is both faster and more accurate.
