@@ -55,6 +55,16 @@ enum BenchCommand {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // Text commands piped into `head` should end quietly like other Unix tools instead of
+    // panicking on the closed pipe. Not for view/record: a dying ffmpeg must be an error the
+    // recorder handles (finishing its file), not a silent kill.
+    #[cfg(unix)]
+    if !matches!(cli.command, None | Some(Command::View(_)) | Some(Command::Record(_))) {
+        // SAFETY: restoring the default disposition of SIGPIPE before any thread starts.
+        unsafe {
+            libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+        }
+    }
     let result = match cli.command {
         Some(Command::Run(args)) => cli::run::run(&args),
         Some(Command::Bench(BenchCommand::Scale(args))) => cli::bench_scale::run(&args),
