@@ -59,7 +59,10 @@ fn main() -> ExitCode {
     // panicking on the closed pipe. Not for view/record: a dying ffmpeg must be an error the
     // recorder handles (finishing its file), not a silent kill.
     #[cfg(unix)]
-    if !matches!(cli.command, None | Some(Command::View(_)) | Some(Command::Record(_))) {
+    if !matches!(
+        cli.command,
+        None | Some(Command::View(_)) | Some(Command::Record(_))
+    ) {
         // SAFETY: restoring the default disposition of SIGPIPE before any thread starts.
         unsafe {
             libc::signal(libc::SIGPIPE, libc::SIG_DFL);
