@@ -100,25 +100,6 @@ fn shape(mesh: &crate::formats::TetMesh) -> Shape {
     Shape::from_tet_mesh(mesh).expect("tumble's meshes are valid")
 }
 
-fn body_on(
-    shape: &Shape,
-    index: usize,
-    density: f64,
-    fixed: bool,
-    position: DVec3,
-    orientation: DQuat,
-) -> RigidBody {
-    RigidBody::new(
-        index,
-        shape.volume,
-        shape.unit_inertia,
-        density,
-        fixed,
-        position,
-        orientation,
-    )
-}
-
 fn single(shape: Shape, body: RigidBody, settings: Settings) -> World {
     World::new(
         vec![shape],
@@ -184,7 +165,7 @@ fn m(name: &str, value: f64) -> (String, f64) {
 /// A box thrown upwards high above the ground: position error against `x0 + v0 t + g t^2 / 2`.
 fn free_fall(settings: Settings) -> Measured {
     let s = shape(&assets::cuboid(DVec3::new(1.0, 1.0, 1.0)));
-    let mut b = body_on(
+    let mut b = RigidBody::on_shape(
         &s,
         0,
         100.0,
@@ -258,7 +239,7 @@ fn spin(s: Shape, axis: DVec3, settings: Settings) -> Measured {
         ..settings
     };
     let q0 = DQuat::IDENTITY;
-    let mut b = body_on(&s, 0, 10.0, false, DVec3::new(0.0, 1000.0, 0.0), q0);
+    let mut b = RigidBody::on_shape(&s, 0, 10.0, false, DVec3::new(0.0, 1000.0, 0.0), q0);
     let w0 = 2.0 * axis + DVec3::new(0.02, 0.02, 0.02);
     b.angular_velocity = w0;
     let inertia = b.inertia;
@@ -311,7 +292,7 @@ fn spin(s: Shape, axis: DVec3, settings: Settings) -> Measured {
 fn bounce(settings: Settings) -> Measured {
     let h = 2.0;
     let s = shape(&assets::octahedron(DVec3::splat(h)));
-    let b = body_on(
+    let b = RigidBody::on_shape(
         &s,
         0,
         100.0,
@@ -366,8 +347,8 @@ fn pendulum(settings: Settings) -> Measured {
     assert!(s.rest_vertices[centre].length() < 1e-12);
     let (length, theta0): (f64, f64) = (20.0, 0.2);
     let pivot = DVec3::new(0.0, 60.0, 0.0);
-    let anchor = body_on(&s, 0, 100.0, true, pivot, DQuat::IDENTITY);
-    let bob = body_on(
+    let anchor = RigidBody::on_shape(&s, 0, 100.0, true, pivot, DQuat::IDENTITY);
+    let bob = RigidBody::on_shape(
         &s,
         0,
         100.0,
@@ -445,7 +426,7 @@ fn tower(settings: Settings) -> Measured {
         .iter()
         .enumerate()
         .map(|(k, &rho)| {
-            body_on(
+            RigidBody::on_shape(
                 &s,
                 0,
                 rho,

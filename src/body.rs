@@ -1,5 +1,6 @@
 //! Rigid bodies: the state the simulation advances and the constants it needs.
 
+use crate::shape::Shape;
 use glam::{DMat3, DQuat, DVec3};
 
 /// Index of a body in [`crate::World::bodies`].
@@ -66,6 +67,26 @@ impl RigidBody {
             inverse_inertia,
             quarantined: false,
         }
+    }
+
+    /// A body of `density` on `shape` (index `shape_index` in the world's shapes).
+    pub fn on_shape(
+        shape: &Shape,
+        shape_index: usize,
+        density: f64,
+        fixed: bool,
+        position: DVec3,
+        orientation: DQuat,
+    ) -> Self {
+        Self::new(
+            shape_index,
+            shape.volume,
+            shape.unit_inertia,
+            density,
+            fixed,
+            position,
+            orientation,
+        )
     }
 
     /// Whether contacts and constraints may move this body.

@@ -50,26 +50,6 @@ fn shape_of(mesh: &crate::formats::TetMesh) -> Shape {
     Shape::from_tet_mesh(mesh).expect("generated meshes are valid")
 }
 
-fn new_body(
-    shapes: &[Shape],
-    shape: usize,
-    density: f64,
-    fixed: bool,
-    position: DVec3,
-    orientation: DQuat,
-) -> RigidBody {
-    let s = &shapes[shape];
-    RigidBody::new(
-        shape,
-        s.volume,
-        s.unit_inertia,
-        density,
-        fixed,
-        position,
-        orientation,
-    )
-}
-
 /// `sparse-N`: boxes and tetrahedra alternating, density 100, small tilts, in a square grid of
 /// columns over x, z in [-200, 200] on 4 layers at y = 10, 73, 137, 200. No constraints.
 pub fn sparse(n: usize, settings: Settings) -> World {
@@ -99,8 +79,8 @@ pub fn sparse(n: usize, settings: Settings) -> World {
                 let shape = bodies.len() % 2;
                 let position =
                     DVec3::new(-200.0 + spacing * i as f64, y, -200.0 + spacing * k as f64);
-                bodies.push(new_body(
-                    &shapes,
+                bodies.push(RigidBody::on_shape(
+                    &shapes[shape],
                     shape,
                     100.0,
                     false,
@@ -151,8 +131,8 @@ pub fn pile(n: usize, settings: Settings) -> World {
             std::f64::consts::FRAC_PI_2,
         ),
     ] {
-        bodies.push(new_body(
-            &shapes,
+        bodies.push(RigidBody::on_shape(
+            &shapes[wall],
             wall,
             1000.0,
             true,
@@ -171,8 +151,8 @@ pub fn pile(n: usize, settings: Settings) -> World {
                 let x = -half + 2.0 + pitch * (i as f64 + 0.5) + rng.range(-0.3, 0.3);
                 let z = -half + 2.0 + pitch * (j as f64 + 0.5) + rng.range(-0.3, 0.3);
                 let y = 5.0 + 6.5 * layer as f64;
-                bodies.push(new_body(
-                    &shapes,
+                bodies.push(RigidBody::on_shape(
+                    &shapes[k % 3],
                     k % 3,
                     100.0,
                     false,
@@ -207,8 +187,8 @@ pub fn chain(n: usize, settings: Settings) -> World {
         let lean = rng.range(-1.0, 1.0);
         for k in 0..10 {
             let position = DVec3::new(x + lean * k as f64, 80.0 - 4.0 * k as f64, z);
-            bodies.push(new_body(
-                &shapes,
+            bodies.push(RigidBody::on_shape(
+                &shapes[0],
                 0,
                 500.0,
                 k == 0,
@@ -265,8 +245,8 @@ pub fn random(seed: u64, n: usize, max_speed: f64, settings: Settings) -> World 
                 rng.range(12.0, 12.0 + 2.0 * extent),
                 rng.range(-extent, extent),
             );
-            let mut b = new_body(
-                &shapes,
+            let mut b = RigidBody::on_shape(
+                &shapes[shape],
                 shape,
                 density,
                 k % 17 == 16,

@@ -19,7 +19,7 @@ fn params(e: f64) -> ContactParams {
 
 fn ellipsoid_body(position: DVec3) -> (tumble::Shape, RigidBody) {
     let s = shape(&assets::ellipsoid(DVec3::new(3.0, 2.0, 1.0), 8, 16));
-    let b = body(
+    let b = RigidBody::on_shape(
         &s,
         0,
         7.0,
@@ -76,7 +76,7 @@ fn orientation_update_is_rotation_by_w_dt_about_w() {
 #[test]
 fn fixed_bodies_are_not_integrated() {
     let s = shape(&assets::cuboid(DVec3::ONE));
-    let mut b = body(&s, 0, 1.0, true, DVec3::new(0.0, 5.0, 0.0), DQuat::IDENTITY);
+    let mut b = RigidBody::on_shape(&s, 0, 1.0, true, DVec3::new(0.0, 5.0, 0.0), DQuat::IDENTITY);
     let before = b.clone();
     let shapes = vec![s];
     let mut world = World::new(
@@ -123,7 +123,7 @@ fn kinetic_energy(bodies: [&RigidBody; 2]) -> f64 {
 fn colliding_pair() -> (RigidBody, RigidBody, Contact) {
     let (_, mut a) = ellipsoid_body(DVec3::new(0.0, 0.0, 0.0));
     let s2 = shape(&assets::cuboid(DVec3::new(1.0, 2.0, 0.5)));
-    let mut b = body(
+    let mut b = RigidBody::on_shape(
         &s2,
         1,
         3.0,
@@ -200,7 +200,7 @@ fn elastic_collision_conserves_energy_and_plastic_stops_normal_motion() {
 fn head_on_collision_detected_by_the_world_swaps_velocities() {
     // Equal cubes moving head-on along x: e = 1 swaps their velocities, and energy is kept.
     let s = shape(&assets::cuboid(DVec3::ONE));
-    let mut a = body(
+    let mut a = RigidBody::on_shape(
         &s,
         0,
         2.0,
@@ -208,7 +208,7 @@ fn head_on_collision_detected_by_the_world_swaps_velocities() {
         DVec3::new(-0.99, 10.0, 0.0),
         DQuat::IDENTITY,
     );
-    let mut b = body(
+    let mut b = RigidBody::on_shape(
         &s,
         0,
         2.0,
@@ -244,7 +244,7 @@ fn head_on_collision_detected_by_the_world_swaps_velocities() {
 fn fixed_body_never_moves_in_contact() {
     let (mut a, _, c) = colliding_pair();
     let s2 = shape(&assets::cuboid(DVec3::new(1.0, 2.0, 0.5)));
-    let mut wall = body(
+    let mut wall = RigidBody::on_shape(
         &s2,
         1,
         3.0,
@@ -324,7 +324,7 @@ fn position_projection_lands_on_the_violated_bound() {
 #[test]
 fn position_projection_moves_only_the_movable_body() {
     let s = shape(&assets::cuboid(DVec3::ONE));
-    let anchor = body(
+    let anchor = RigidBody::on_shape(
         &s,
         0,
         1.0,
@@ -332,7 +332,7 @@ fn position_projection_moves_only_the_movable_body() {
         DVec3::new(0.0, 10.0, 0.0),
         DQuat::IDENTITY,
     );
-    let mut hanging = body(
+    let mut hanging = RigidBody::on_shape(
         &s,
         0,
         1.0,

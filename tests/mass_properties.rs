@@ -3,6 +3,7 @@ mod common;
 
 use common::*;
 use glam::{DMat3, DVec3};
+use tumble::RigidBody;
 use tumble::assets;
 use tumble::formats::parse_medit;
 
@@ -24,7 +25,7 @@ fn unit_cube_has_closed_form_mass_properties() {
             }
         }
     }
-    let b = body(&s, 0, 3.0, false, DVec3::ZERO, glam::DQuat::IDENTITY);
+    let b = RigidBody::on_shape(&s, 0, 3.0, false, DVec3::ZERO, glam::DQuat::IDENTITY);
     assert_close(b.inverse_mass, 1.0 / 3.0, 1e-14, "inverse mass 1/(rho V)");
     assert_close(b.inverse_inertia.col(0)[0], 2.0, 1e-13, "inverse inertia");
 }

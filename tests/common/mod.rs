@@ -1,10 +1,10 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
-use glam::{DQuat, DVec3};
+use glam::DVec3;
 use std::path::PathBuf;
+use tumble::Shape;
 use tumble::formats::TetMesh;
-use tumble::{RigidBody, Shape};
 
 /// `../shared/coursework-data` beside the checkout, or None (tests then skip with a reason).
 pub fn coursework_dir() -> Option<PathBuf> {
@@ -22,25 +22,6 @@ pub fn coursework_dir() -> Option<PathBuf> {
 
 pub fn shape(mesh: &TetMesh) -> Shape {
     Shape::from_tet_mesh(mesh).expect("valid mesh")
-}
-
-pub fn body(
-    shape: &Shape,
-    shape_index: usize,
-    density: f64,
-    fixed: bool,
-    position: DVec3,
-    orientation: DQuat,
-) -> RigidBody {
-    RigidBody::new(
-        shape_index,
-        shape.volume,
-        shape.unit_inertia,
-        density,
-        fixed,
-        position,
-        orientation,
-    )
 }
 
 /// Relative closeness with an absolute floor.
