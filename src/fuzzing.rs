@@ -14,10 +14,9 @@ fn text(data: &[u8]) -> Option<&str> {
 /// A mesh that loads becomes a shape, a body and a few simulated steps.
 fn exercise_mesh(mesh: &crate::formats::TetMesh) {
     if let Ok(shape) = Shape::from_tet_mesh(mesh) {
-        let body = crate::RigidBody::new(
+        let body = crate::RigidBody::on_shape(
+            &shape,
             0,
-            shape.volume,
-            shape.unit_inertia,
             1.0,
             false,
             glam::DVec3::new(0.0, 5.0, 0.0),

@@ -275,10 +275,9 @@ fn load_with(
             }
         };
         let shape = &shapes[shape_index];
-        let body = RigidBody::new(
+        let body = RigidBody::on_shape(
+            shape,
             shape_index,
-            shape.volume,
-            shape.unit_inertia,
             record.density,
             record.fixed,
             record.position,

@@ -108,10 +108,9 @@ fn build(specs: &[BodySpec], links: &[(usize, usize, f64, f64)], settings: Setti
             } else {
                 DQuat::IDENTITY
             };
-            let mut b = RigidBody::new(
+            let mut b = RigidBody::on_shape(
+                &shape,
                 s.mesh,
-                shape.volume,
-                shape.unit_inertia,
                 10f64.powf(s.log_density),
                 s.fixed,
                 DVec3::from(s.position),

@@ -122,10 +122,9 @@ fn long_chain_with_tight_bounds_stays_bounded_and_reports_its_budget() {
     let mut bodies = Vec::new();
     let mut constraints = Vec::new();
     for k in 0..100 {
-        bodies.push(tumble::RigidBody::new(
+        bodies.push(tumble::RigidBody::on_shape(
+            &s,
             0,
-            s.volume,
-            s.unit_inertia,
             100.0,
             k == 0,
             DVec3::new(0.3 * k as f64, 400.0 - 1.5 * k as f64, 0.0),
@@ -191,17 +190,7 @@ fn two_bodies(a: (f64, DVec3), b: (f64, DVec3), settings: Settings) -> World {
     let s = tumble::Shape::from_tet_mesh(&assets::cuboid(DVec3::new(2.0, 1.0, 1.5))).unwrap();
     let bodies = [a, b]
         .iter()
-        .map(|&(density, p)| {
-            tumble::RigidBody::new(
-                0,
-                s.volume,
-                s.unit_inertia,
-                density,
-                false,
-                p,
-                DQuat::IDENTITY,
-            )
-        })
+        .map(|&(density, p)| tumble::RigidBody::on_shape(&s, 0, density, false, p, DQuat::IDENTITY))
         .collect();
     World::new(vec![s], vec!["box".into()], bodies, Vec::new(), settings)
 }
@@ -314,20 +303,18 @@ fn injected_nan_is_quarantined_and_does_not_spread() {
 fn thrown_at_wall(settings: Settings) -> f64 {
     let ball = tumble::Shape::from_tet_mesh(&assets::cuboid(DVec3::splat(0.5))).unwrap();
     let wall = tumble::Shape::from_tet_mesh(&assets::cuboid(DVec3::new(0.5, 20.0, 20.0))).unwrap();
-    let mut thrown = tumble::RigidBody::new(
+    let mut thrown = tumble::RigidBody::on_shape(
+        &ball,
         0,
-        ball.volume,
-        ball.unit_inertia,
         100.0,
         false,
         DVec3::new(-10.0, 30.0, 0.0),
         DQuat::IDENTITY,
     );
     thrown.linear_velocity = DVec3::new(200.0, 0.0, 0.0);
-    let fixed = tumble::RigidBody::new(
+    let fixed = tumble::RigidBody::on_shape(
+        &wall,
         1,
-        wall.volume,
-        wall.unit_inertia,
         100.0,
         true,
         DVec3::new(0.0, 30.0, 0.0),
