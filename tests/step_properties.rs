@@ -109,7 +109,7 @@ fn build(specs: &[BodySpec], links: &[(usize, usize, f64, f64)], settings: Setti
                 DQuat::IDENTITY
             };
             let mut b = RigidBody::on_shape(
-                &shape,
+                shape,
                 s.mesh,
                 10f64.powf(s.log_density),
                 s.fixed,
