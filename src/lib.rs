@@ -1,36 +1,23 @@
 //! tumble: a rigid-body simulator of convex tetrahedral meshes with inequality distance
-//! constraints, reproducing (by default, exactly) the CGGS rigid-body coursework and improving on
+//! constraints, reproducing by default the CGGS rigid-body coursework's method and improving on
 //! it through opt-in settings.
 //!
-//! The core is headless, f64 throughout and deterministic. A [`World`] owns bodies, shapes and
-//! constraints in flat arrays; [`World::step`] runs the stages in order: integrate, broad phase,
-//! narrow phase and contact resolution, ground contacts, constraints, pose check.
+//! Rooms (see docs/architecture.md), arrows pointing inward only:
+//! - [`sim`]: the headless core (world, bodies, shapes, the stages of a step, settings, stats);
+//! - [`io`]: file formats, writers, files that appear whole or not at all;
+//! - [`scene`]: building worlds from files, built-in and generated scenes, tumble's meshes;
+//! - [`bench`]: accuracy scenarios and the benchmarks (drivers and plots with feature `bench`);
+//! - `viewer` (feature `viewer`): the wgpu/winit/egui window and the recorder.
+//!
+//! The command line lives in the binary (`src/main.rs`, `src/cli/`).
 
-pub mod accuracy;
-pub mod assets;
-pub mod body;
-pub mod broad_phase;
-pub mod constraint;
-pub mod contact;
-pub mod formats;
-pub mod fuzzing;
-pub mod generate;
-pub mod integrate;
-pub mod interrupt;
-pub mod narrow_phase;
-pub mod output;
+pub mod bench;
+pub mod io;
 pub mod scene;
-pub mod settings;
-pub mod shape;
-pub mod stats;
+pub mod sim;
 #[cfg(feature = "viewer")]
 pub mod viewer;
-pub mod world;
 
-pub use body::{BodyId, RigidBody};
-pub use formats::LoadError;
+pub use io::LoadError;
 pub use scene::{BUILTIN_SCENES, ConstraintsChoice, DEFAULT_SCENE};
-pub use settings::Settings;
-pub use shape::Shape;
-pub use stats::StepStats;
-pub use world::World;
+pub use sim::{RigidBody, Settings, Shape, StepStats, World};

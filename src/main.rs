@@ -6,7 +6,7 @@ use clap::{Parser, Subcommand};
 use std::process::ExitCode;
 
 #[global_allocator]
-static ALLOCATOR: cli::alloc::CountingAlloc = cli::alloc::CountingAlloc;
+static ALLOCATOR: tumble::bench::alloc::CountingAlloc = tumble::bench::alloc::CountingAlloc;
 
 #[derive(Parser)]
 #[command(name = "tumble", version, about = "Rigid-body simulation of convex tet meshes with distance constraints", long_about = None)]
@@ -46,11 +46,11 @@ struct DefaultView {
 #[derive(Subcommand)]
 enum BenchCommand {
     /// ms/step against N for generated scenes: the coursework's loop vs tumble on 1 and all cores.
-    Scale(cli::bench_scale::ScaleArgs),
+    Scale(cli::bench::ScaleArgs),
     /// Error against run time per scenario, setting combination and time step.
-    Accuracy(cli::bench_accuracy::AccuracyArgs),
+    Accuracy(cli::bench::AccuracyArgs),
     /// The tower and the chains for 100,000 steps: drift, violation, energy.
-    Soak(cli::bench_soak::SoakArgs),
+    Soak(cli::bench::SoakArgs),
 }
 
 fn main() -> ExitCode {
@@ -70,9 +70,9 @@ fn main() -> ExitCode {
     }
     let result = match cli.command {
         Some(Command::Run(args)) => cli::run::run(&args),
-        Some(Command::Bench(BenchCommand::Scale(args))) => cli::bench_scale::run(&args),
-        Some(Command::Bench(BenchCommand::Accuracy(args))) => cli::bench_accuracy::run(&args),
-        Some(Command::Bench(BenchCommand::Soak(args))) => cli::bench_soak::run(&args),
+        Some(Command::Bench(BenchCommand::Scale(args))) => cli::bench::scale(&args),
+        Some(Command::Bench(BenchCommand::Accuracy(args))) => cli::bench::accuracy(&args),
+        Some(Command::Bench(BenchCommand::Soak(args))) => cli::bench::soak(&args),
         Some(Command::Scenes) => {
             for (name, file) in tumble::BUILTIN_SCENES {
                 println!("{name:16} scenes/{file}");
@@ -94,7 +94,7 @@ fn main() -> ExitCode {
 }
 
 fn gen_assets(root: &std::path::Path) -> anyhow::Result<()> {
-    for (path, text) in tumble::assets::generated_files() {
+    for (path, text) in tumble::scene::assets::generated_files() {
         let full = root.join(&path);
         std::fs::write(&full, text)
             .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", full.display()))?;

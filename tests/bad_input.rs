@@ -354,6 +354,7 @@ fn constraint_file_errors() {
     assert!(world.all_finite());
 }
 
+#[cfg(feature = "cli")]
 #[test]
 fn cli_reports_errors_and_exits_nonzero() {
     let dir = Dir::new("cli");

@@ -3,10 +3,12 @@ mod common;
 
 use common::*;
 use glam::{DQuat, DVec3};
-use tumble::assets;
-use tumble::constraint::{DistanceConstraint, resolve_position, resolve_velocity};
-use tumble::contact::{Contact, ContactParams, resolve_contact};
-use tumble::integrate::integrate_body;
+use tumble::scene::assets;
+use tumble::sim::constraint::DistanceConstraint;
+use tumble::sim::coursework::contact::{ContactParams, resolve_contact};
+use tumble::sim::coursework::projection::{resolve_position, resolve_velocity};
+use tumble::sim::integrate::integrate_body;
+use tumble::sim::narrow_phase::Contact;
 use tumble::{RigidBody, Settings, World};
 
 fn params(e: f64) -> ContactParams {

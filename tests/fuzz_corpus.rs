@@ -4,7 +4,7 @@
 mod common;
 
 use std::path::Path;
-use tumble::generate::Rng;
+use tumble::scene::generate::Rng;
 
 fn corpus(target: &str) -> Vec<(String, Vec<u8>)> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -67,7 +67,7 @@ fn mutate(input: &[u8], rng: &mut Rng) -> Vec<u8> {
 #[test]
 fn every_reader_survives_its_corpus_and_mutations_of_it() {
     for target in ["medit", "off", "scene", "constraints"] {
-        let run = tumble::fuzzing::by_name(target).unwrap();
+        let run = tumble::io::fuzzing::by_name(target).unwrap();
         let inputs = corpus(target);
         assert!(!inputs.is_empty(), "no corpus for {target}");
         let mut rng = Rng::new(0xF022);

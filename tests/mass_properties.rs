@@ -4,8 +4,8 @@ mod common;
 use common::*;
 use glam::{DMat3, DVec3};
 use tumble::RigidBody;
-use tumble::assets;
-use tumble::formats::parse_medit;
+use tumble::io::parse_medit;
+use tumble::scene::assets;
 
 #[test]
 fn unit_cube_has_closed_form_mass_properties() {

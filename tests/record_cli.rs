@@ -3,7 +3,7 @@
 //!
 //! Tests that render print why they skip when there is no GPU adapter, and fail instead with
 //! TUMBLE_REQUIRE_GPU=1.
-#![cfg(feature = "viewer")]
+#![cfg(all(feature = "viewer", feature = "cli"))]
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

@@ -1,4 +1,5 @@
 //! `tumble run`: JSON summary against the physics, and a trajectory that survives Ctrl-C.
+#![cfg(feature = "cli")]
 use std::process::Command;
 
 fn tumble() -> Command {

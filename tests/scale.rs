@@ -2,7 +2,7 @@
 //! count; the sparse constraint schedule reaches the sweep's tolerance with fewer visits.
 mod common;
 
-use tumble::settings::{BroadPhase, ConstraintSchedule};
+use tumble::sim::settings::{BroadPhase, ConstraintSchedule};
 use tumble::{ConstraintsChoice, Settings, World};
 
 fn trajectory(mut world: World, steps: usize) -> Vec<u64> {
@@ -43,11 +43,11 @@ fn scenes(settings: &Settings) -> Vec<(String, World)> {
     }
     out.push((
         "pile-120".into(),
-        tumble::generate::pile(120, settings.clone()),
+        tumble::scene::generate::pile(120, settings.clone()),
     ));
     out.push((
         "sparse-200".into(),
-        tumble::generate::sparse(200, settings.clone()),
+        tumble::scene::generate::sparse(200, settings.clone()),
     ));
     if let Some(dir) = common::coursework_dir() {
         for name in [
@@ -131,7 +131,7 @@ fn sparse_schedule_reaches_tolerance_with_fewer_visits() {
                 ..base.clone()
             };
             if make == 0 {
-                tumble::generate::chain(100, s)
+                tumble::scene::generate::chain(100, s)
             } else {
                 tumble::scene::load("two-chain", &ConstraintsChoice::Auto, s).unwrap()
             }
@@ -180,7 +180,7 @@ fn sparse_schedule_keeps_going_until_nothing_is_violated() {
         gravity: glam::DVec3::ZERO,
         ..Settings::default()
     };
-    let mut world = tumble::generate::chain(10, settings);
+    let mut world = tumble::scene::generate::chain(10, settings);
     for (k, b) in world.bodies.iter_mut().enumerate().skip(1) {
         b.position.y -= 3.0 * k as f64;
     }
@@ -198,7 +198,7 @@ fn sparse_schedule_keeps_going_until_nothing_is_violated() {
     );
     assert!(worst <= 1e-3 + 1e-12, "violation {worst} left");
     // And a tiny budget is reported honestly.
-    let mut world = tumble::generate::chain(
+    let mut world = tumble::scene::generate::chain(
         10,
         Settings {
             max_iterations: 3,

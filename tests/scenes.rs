@@ -4,7 +4,7 @@ mod common;
 
 use common::*;
 use std::path::Path;
-use tumble::formats::{parse_medit, parse_off};
+use tumble::io::{parse_medit, parse_off};
 use tumble::{ConstraintsChoice, Settings, World};
 
 fn run_finite(world: &mut World, steps: usize, what: &str) {
@@ -96,7 +96,7 @@ fn assert_outward(shape: &tumble::Shape, what: &str) {
 
 #[test]
 fn every_mesh_has_outward_boundary_triangles() {
-    for (name, mesh) in tumble::assets::all_meshes() {
+    for (name, mesh) in tumble::scene::assets::all_meshes() {
         assert_outward(&shape(&mesh), name);
     }
     let Some(dir) = coursework_dir() else { return };
@@ -115,7 +115,7 @@ fn every_mesh_has_outward_boundary_triangles() {
 #[test]
 fn shipped_assets_are_what_tumble_generates() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    for (path, text) in tumble::assets::generated_files() {
+    for (path, text) in tumble::scene::assets::generated_files() {
         let on_disk = std::fs::read_to_string(root.join(&path)).unwrap();
         assert!(
             on_disk == text,

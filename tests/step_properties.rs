@@ -3,8 +3,9 @@
 //! went non-finite (quarantine) and the rest stay finite.
 use glam::{DQuat, DVec3};
 use proptest::prelude::*;
-use tumble::settings::{ConstraintSchedule, RotationIntegrator};
-use tumble::{RigidBody, Settings, Shape, World, assets};
+use tumble::scene::assets;
+use tumble::sim::settings::{ConstraintSchedule, RotationIntegrator};
+use tumble::{RigidBody, Settings, Shape, World};
 
 #[derive(Debug, Clone)]
 struct BodySpec {
@@ -129,14 +130,16 @@ fn build(specs: &[BodySpec], links: &[(usize, usize, f64, f64)], settings: Setti
         if i == j || (bodies[i].fixed && bodies[j].fixed) {
             continue;
         }
-        constraints.extend(tumble::constraint::DistanceConstraint::lower_and_upper(
-            &bodies,
-            &shapes,
-            (i, 0),
-            (j, 0),
-            lower,
-            lower + width,
-        ));
+        constraints.extend(
+            tumble::sim::constraint::DistanceConstraint::lower_and_upper(
+                &bodies,
+                &shapes,
+                (i, 0),
+                (j, 0),
+                lower,
+                lower + width,
+            ),
+        );
     }
     World::new(
         shapes,

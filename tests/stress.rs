@@ -2,8 +2,9 @@
 mod common;
 
 use glam::{DQuat, DVec3};
-use tumble::settings::ConstraintSchedule;
-use tumble::{Settings, World, assets, generate};
+use tumble::scene::{assets, generate};
+use tumble::sim::settings::ConstraintSchedule;
+use tumble::{Settings, World};
 
 /// Lowest point of a body below the ground, by its vertices.
 fn depth_below_ground(world: &World) -> f64 {
@@ -131,14 +132,16 @@ fn long_chain_with_tight_bounds_stays_bounded_and_reports_its_budget() {
             DQuat::IDENTITY,
         ));
         if k > 0 {
-            constraints.extend(tumble::constraint::DistanceConstraint::lower_and_upper(
-                &bodies,
-                std::slice::from_ref(&s),
-                (k - 1, 0),
-                (k, 2),
-                0.99,
-                1.01,
-            ));
+            constraints.extend(
+                tumble::sim::constraint::DistanceConstraint::lower_and_upper(
+                    &bodies,
+                    std::slice::from_ref(&s),
+                    (k - 1, 0),
+                    (k, 2),
+                    0.99,
+                    1.01,
+                ),
+            );
         }
     }
     for (budget, bound) in [(10_000, 20.0), (50_000, 1.0)] {

@@ -2,5 +2,5 @@
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    tumble::fuzzing::constraints(data);
+    tumble::io::fuzzing::constraints(data);
 });

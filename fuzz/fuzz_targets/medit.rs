@@ -2,5 +2,5 @@
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    tumble::fuzzing::medit(data);
+    tumble::io::fuzzing::medit(data);
 });

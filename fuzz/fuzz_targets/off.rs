@@ -2,5 +2,5 @@
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
-    tumble::fuzzing::off(data);
+    tumble::io::fuzzing::off(data);
 });

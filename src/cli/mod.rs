@@ -1,17 +1,13 @@
 //! The `tumble` command line: argument types shared by the subcommands, and the subcommands.
 
-pub mod alloc;
-pub mod bench_accuracy;
-pub mod bench_scale;
-pub mod bench_soak;
-pub mod plot;
-#[cfg(feature = "compare-rapier")]
-pub mod rapier;
+pub mod bench;
+pub mod interrupt;
 pub mod run;
 pub mod view;
 
 use clap::Args;
-use tumble::settings::{BroadPhase, ConstraintSchedule, RotationIntegrator};
+use std::path::PathBuf;
+use tumble::sim::settings::{BroadPhase, ConstraintSchedule, RotationIntegrator};
 use tumble::{ConstraintsChoice, Settings};
 
 /// Simulation settings common to `run`, `view`, `record` and the benchmarks. Defaults reproduce
@@ -127,9 +123,18 @@ pub struct SceneArgs {
     pub constraints: Option<String>,
 }
 
+/// `--constraints FILE|none`.
+fn constraints_choice(arg: Option<&str>) -> ConstraintsChoice {
+    match arg {
+        None => ConstraintsChoice::Auto,
+        Some(s) if s.eq_ignore_ascii_case("none") => ConstraintsChoice::None,
+        Some(s) => ConstraintsChoice::File(PathBuf::from(s)),
+    }
+}
+
 impl SceneArgs {
     pub fn load(&self, settings: Settings) -> anyhow::Result<tumble::World> {
-        let choice = ConstraintsChoice::from_arg(self.constraints.as_deref());
+        let choice = constraints_choice(self.constraints.as_deref());
         let world = tumble::scene::load(&self.scene, &choice, settings)?;
         for w in &world.warnings {
             eprintln!("warning: {w}");
@@ -152,4 +157,29 @@ pub fn progress_bar(len: u64, what: &str) -> indicatif::ProgressBar {
     );
     bar.set_message(what.to_string());
     bar
+}
+
+/// A benchmark's progress as a bar on stderr (nothing when stderr is not a terminal).
+#[derive(Default)]
+pub struct ProgressBar(std::cell::RefCell<Option<indicatif::ProgressBar>>);
+
+impl tumble::bench::Progress for ProgressBar {
+    fn start(&self, total: u64, what: &str) {
+        *self.0.borrow_mut() = Some(progress_bar(total, what));
+    }
+    fn message(&self, text: &str) {
+        if let Some(bar) = &*self.0.borrow() {
+            bar.set_message(text.to_string());
+        }
+    }
+    fn set_position(&self, done: u64) {
+        if let Some(bar) = &*self.0.borrow() {
+            bar.set_position(done);
+        }
+    }
+    fn finish(&self) {
+        if let Some(bar) = self.0.borrow_mut().take() {
+            bar.finish_and_clear();
+        }
+    }
 }

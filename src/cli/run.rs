@@ -3,10 +3,10 @@
 use super::{SceneArgs, SettingsArgs, progress_bar};
 use clap::Args;
 use serde::Serialize;
-use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
-use tumble::stats::StageTimings;
+use tumble::io::trajectory;
+use tumble::sim::stats::StageTimings;
 
 #[derive(Debug, Args)]
 pub struct RunArgs {
@@ -59,24 +59,11 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let mut trajectory = args
         .trajectory
         .as_deref()
-        .map(tumble::output::AtomicFile::create)
+        .map(tumble::io::AtomicFile::create)
         .transpose()?;
-    let record =
-        |world: &tumble::World, out: &mut tumble::output::AtomicFile| -> anyhow::Result<()> {
-            let w = out.writer();
-            for (i, b) in world.bodies.iter().enumerate() {
-                let (p, q) = (b.position, b.orientation);
-                writeln!(
-                    w,
-                    "{},{},{},{},{},{},{},{},{},{}",
-                    world.step_count, world.time, i, p.x, p.y, p.z, q.w, q.x, q.y, q.z
-                )?;
-            }
-            Ok(())
-        };
     if let Some(out) = &mut trajectory {
-        writeln!(out.writer(), "step,time,body,x,y,z,qw,qx,qy,qz")?;
-        record(&world, out)?;
+        trajectory::write_header(out.writer())?;
+        trajectory::write_rows(out.writer(), &world)?;
     }
     let bar = progress_bar(args.steps, "simulating");
     let mut summary = RunSummary {
@@ -101,11 +88,11 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         stage_ms: StageTimings::default(),
         settings,
     };
-    tumble::interrupt::install();
+    super::interrupt::install();
     let mut completed = 0;
     let start = Instant::now();
     for k in 0..args.steps {
-        if tumble::interrupt::interrupted() {
+        if super::interrupt::interrupted() {
             break;
         }
         let stats = world.step();
@@ -129,7 +116,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
                 .max(world.max_constraint_violation());
         }
         if let Some(out) = &mut trajectory {
-            record(&world, out)?;
+            trajectory::write_rows(out.writer(), &world)?;
         }
         if k % 64 == 0 {
             bar.set_position(k);
@@ -146,19 +133,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     };
     summary.energy_end = world.total_energy();
     summary.finite = world.all_finite() && summary.quarantined.is_empty();
-    let per_step = 1000.0 / completed.max(1) as f64;
-    let t = &mut summary.stage_ms;
-    for slot in [
-        &mut t.integrate,
-        &mut t.broad_phase,
-        &mut t.narrow_phase,
-        &mut t.contact_resolution,
-        &mut t.ground,
-        &mut t.constraints,
-        &mut t.finalize,
-    ] {
-        *slot *= per_step;
-    }
+    summary.stage_ms = summary.stage_ms.scaled(1000.0 / completed.max(1) as f64);
 
     let interrupted = completed < args.steps;
     summary.steps = completed;
@@ -216,9 +191,8 @@ fn print_summary(s: &RunSummary) {
     println!("all values finite: {}", s.finite);
     let stages: Vec<String> = s
         .stage_ms
-        .named()
         .iter()
-        .map(|(n, v)| format!("{n} {v:.3}"))
+        .map(|(stage, ms)| format!("{} {ms:.3}", stage.name()))
         .collect();
     println!("ms/step: {}", stages.join(", "));
 }

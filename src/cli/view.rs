@@ -104,7 +104,9 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
         vsync: !args.no_vsync,
         paused: args.paused,
         camera: args.camera.clone(),
+        interrupted: super::interrupt::interrupted,
     };
+    super::interrupt::install();
     tumble::viewer::run_viewer(world, options)
 }
 
@@ -132,7 +134,7 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
             ..DrawOptions::default()
         },
     };
-    tumble::interrupt::install();
+    super::interrupt::install();
     let bar = super::progress_bar(
         ((args.seconds * args.fps).round() as u64).max(1),
         "recording",
@@ -141,7 +143,7 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
         &mut world,
         &options,
         &mut |done, _| bar.set_position(done),
-        &tumble::interrupt::interrupted,
+        &super::interrupt::interrupted,
     )?;
     bar.finish_and_clear();
     let frames = report.frames.max(1) as f64;

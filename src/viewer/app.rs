@@ -34,6 +34,8 @@ pub struct ViewOptions {
     pub paused: bool,
     /// `YAW,PITCH[,DISTANCE[,X,Y,Z]]`.
     pub camera: Option<String>,
+    /// Polled every frame: true once the user asked to quit (Ctrl-C in the terminal).
+    pub interrupted: fn() -> bool,
 }
 
 const NO_DISPLAY: &str = "tumble view needs a display, and neither DISPLAY nor WAYLAND_DISPLAY is set.\n\
@@ -103,7 +105,6 @@ fn build_event_loop(display: Display) -> anyhow::Result<EventLoop<()>> {
 pub fn run(world: World, options: ViewOptions) -> anyhow::Result<()> {
     let display = choose_display()?;
     let event_loop = build_event_loop(display)?;
-    crate::interrupt::install();
     let mut app = App::new(world, options);
     event_loop
         .run_app(&mut app)
@@ -452,7 +453,7 @@ impl App {
             .last_frame
             .map_or(0.0, |t| frame_start.duration_since(t).as_secs_f64());
         self.last_frame = Some(frame_start);
-        if crate::interrupt::interrupted() {
+        if (self.options.interrupted)() {
             self.quitting = true;
             event_loop.exit();
         }
@@ -1083,7 +1084,7 @@ impl ApplicationHandler for App {
         if self.quitting {
             return;
         }
-        if crate::interrupt::interrupted() {
+        if (self.options.interrupted)() {
             self.quitting = true;
             event_loop.exit();
             return;

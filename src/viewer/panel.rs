@@ -2,7 +2,7 @@
 
 use super::renderer::DrawOptions;
 use super::session::Session;
-use crate::Settings;
+use crate::sim::{Choice, Settings};
 use egui::{Color32, RichText};
 use egui_plot::{Line, Plot, PlotPoints};
 
@@ -281,23 +281,14 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
     enum_choice(ui, "constraint schedule", constraint_schedule);
 }
 
-/// A combo box over every variant of a settings enum (new variants appear by themselves).
-fn enum_choice<T: clap::ValueEnum + PartialEq + Copy + std::fmt::Debug>(
-    ui: &mut egui::Ui,
-    label: &str,
-    value: &mut T,
-) {
+/// A combo box over every value of a settings enum (new values appear by themselves).
+fn enum_choice<T: Choice>(ui: &mut egui::Ui, label: &str, value: &mut T) {
     egui::ComboBox::from_label(label)
-        .selected_text(format!("{value:?}"))
+        .selected_text(value.name())
         .show_ui(ui, |ui| {
-            for variant in T::value_variants() {
-                let help = variant
-                    .to_possible_value()
-                    .and_then(|v| v.get_help().map(|h| h.to_string()));
-                let response = ui.selectable_value(value, *variant, format!("{variant:?}"));
-                if let Some(help) = help {
-                    response.on_hover_text(help);
-                }
+            for &variant in T::ALL {
+                ui.selectable_value(value, variant, variant.name())
+                    .on_hover_text(variant.help());
             }
         });
 }
@@ -347,10 +338,10 @@ fn statistics_ui(ui: &mut egui::Ui, session: &Session, info: &FrameInfo) {
             }
             stat(ui, "steps this frame", format!("{}", session.frame_steps));
             let steps = session.frame_steps.max(1) as f64;
-            for (name, seconds) in session.frame_timings.named() {
+            for (stage, seconds) in session.frame_timings.iter() {
                 stat(
                     ui,
-                    &format!("  {}", name.replace('_', " ")),
+                    &format!("  {}", stage.name().replace('_', " ")),
                     format!("{:.3} ms/step", 1e3 * seconds / steps),
                 );
             }

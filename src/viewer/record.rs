@@ -5,7 +5,7 @@ use super::camera::OrbitCamera;
 use super::gpu::Image;
 use super::renderer::{DrawOptions, OffscreenRenderer};
 use crate::World;
-pub use crate::output::{partial_path, write_file_atomically};
+pub use crate::io::{partial_path, write_file_atomically};
 use anyhow::{Context, bail};
 use std::io::Write;
 use std::path::{Path, PathBuf};

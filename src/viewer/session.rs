@@ -2,7 +2,7 @@
 //! window stays responsive, with the statistics and history the panel shows.
 
 use crate::World;
-use crate::stats::{StageTimings, StepStats};
+use crate::sim::stats::{StageTimings, StepStats};
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 

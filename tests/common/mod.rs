@@ -4,7 +4,7 @@
 use glam::DVec3;
 use std::path::PathBuf;
 use tumble::Shape;
-use tumble::formats::TetMesh;
+use tumble::io::TetMesh;
 
 /// `../shared/coursework-data` beside the checkout, or None (tests then skip with a reason).
 pub fn coursework_dir() -> Option<PathBuf> {

@@ -2,9 +2,17 @@
 //! density, its outward boundary and the convex hull used by the narrow phase. Shapes are built
 //! once and shared by every body that uses the same mesh.
 
-use crate::formats::TetMesh;
 use glam::{DMat3, DVec3};
 use parry3d_f64::shape::ConvexPolyhedron;
+
+/// A tetrahedral mesh as read from a file or generated: vertices, tetrahedra and (optionally)
+/// boundary triangles, all 0-based.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TetMesh {
+    pub vertices: Vec<DVec3>,
+    pub tetrahedra: Vec<[u32; 4]>,
+    pub triangles: Vec<[u32; 3]>,
+}
 
 /// Why a mesh cannot be a rigid body.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -2,9 +2,9 @@
 //! each feeds arbitrary bytes to one reader and, when it loads, builds what the simulation would
 //! build from it. Any panic is a bug; errors are the expected outcome for garbage.
 
-use crate::formats::{parse_constraints, parse_medit, parse_off, parse_scene};
-use crate::settings::Settings;
-use crate::shape::Shape;
+use crate::io::{parse_constraints, parse_medit, parse_off, parse_scene};
+use crate::sim::settings::Settings;
+use crate::sim::shape::Shape;
 use std::path::Path;
 
 fn text(data: &[u8]) -> Option<&str> {
@@ -12,7 +12,7 @@ fn text(data: &[u8]) -> Option<&str> {
 }
 
 /// A mesh that loads becomes a shape, a body and a few simulated steps.
-fn exercise_mesh(mesh: &crate::formats::TetMesh) {
+fn exercise_mesh(mesh: &crate::io::TetMesh) {
     if let Ok(shape) = Shape::from_tet_mesh(mesh) {
         let body = crate::RigidBody::on_shape(
             &shape,

@@ -1,8 +1,8 @@
 //! Semi-implicit (symplectic) Euler: velocities first, then positions from the new velocities;
 //! orientations by the quaternion exponential of the world angular velocity.
 
-use crate::body::RigidBody;
-use crate::settings::{RotationIntegrator, Settings};
+use crate::sim::body::RigidBody;
+use crate::sim::settings::{RotationIntegrator, Settings};
 use glam::{DMat3, DQuat, DVec3};
 use rayon::prelude::*;
 

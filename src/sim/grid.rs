@@ -1,39 +1,10 @@
-//! Broad phase: world bounding boxes bounded from each body's pose and its body-space box (never
-//! by transforming vertices), and a uniform hash grid that finds the pairs whose boxes overlap
-//! and keeps up with bodies moved while contacts are being resolved.
+//! A uniform hash grid of boxes: which bodies' boxes may overlap, found cell by cell, and kept up
+//! to date one body at a time while contacts are being resolved.
 
-use crate::body::RigidBody;
-use crate::shape::Shape;
-use glam::{DMat3, DVec3};
+use super::aabb::Aabb;
+use glam::DVec3;
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
-
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Aabb {
-    pub min: DVec3,
-    pub max: DVec3,
-}
-
-impl Aabb {
-    pub fn overlaps(&self, other: &Aabb) -> bool {
-        self.min.cmple(other.max).all() && other.min.cmple(self.max).all()
-    }
-}
-
-/// A box containing the body's hull at its current pose: the body-space box rotated, then boxed
-/// (`|R| h`), padded by a relative 1e-9 so rounding can never make it smaller than the vertices'.
-pub fn body_aabb(body: &RigidBody, shape: &Shape) -> Aabb {
-    let r = body.rotation();
-    let abs = DMat3::from_cols(r.x_axis.abs(), r.y_axis.abs(), r.z_axis.abs());
-    let center = body.world_point(shape.local_box_center);
-    let pad =
-        1e-9 * (shape.local_box_half_extents.max_element() + center.abs().max_element()) + 1e-12;
-    let half = abs * shape.local_box_half_extents + DVec3::splat(pad);
-    Aabb {
-        min: center - half,
-        max: center + half,
-    }
-}
 
 /// FxHash-style multiplicative hasher for cell keys: fast, and deterministic across runs.
 #[derive(Default)]

@@ -1,11 +1,11 @@
 //! Generated scenes parameterised by size, for the scale benchmark and the stress tests.
 
-use crate::assets;
-use crate::body::RigidBody;
-use crate::constraint::DistanceConstraint;
-use crate::settings::Settings;
-use crate::shape::Shape;
-use crate::world::World;
+use crate::scene::assets;
+use crate::sim::body::RigidBody;
+use crate::sim::constraint::DistanceConstraint;
+use crate::sim::settings::Settings;
+use crate::sim::shape::Shape;
+use crate::sim::world::World;
 use glam::{DQuat, DVec3};
 
 /// A small deterministic generator (SplitMix64), so generated scenes are the same everywhere.
@@ -46,7 +46,7 @@ impl Rng {
     }
 }
 
-fn shape_of(mesh: &crate::formats::TetMesh) -> Shape {
+fn shape_of(mesh: &crate::io::TetMesh) -> Shape {
     Shape::from_tet_mesh(mesh).expect("generated meshes are valid")
 }
 

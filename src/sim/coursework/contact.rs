@@ -1,21 +1,10 @@
 //! Impulse-based contact resolution (coursework 1.2, lecture 9): a linear projection out of
 //! penetration weighted by inverse mass, then one restitution impulse at the contact point.
 
-use crate::body::RigidBody;
-use glam::DVec3;
+use crate::sim::body::RigidBody;
+use crate::sim::narrow_phase::Contact;
 
-/// A penetrating contact between body 1 and body 2.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Contact {
-    /// Penetration depth along `normal`, >= 0.
-    pub depth: f64,
-    /// Unit normal pointing from body 1 towards body 2.
-    pub normal: DVec3,
-    /// Point on body 2 deepest inside body 1 (the coursework's `penPosition`).
-    pub point2: DVec3,
-}
-
-/// How contacts are resolved; built from [`crate::Settings`] once per step.
+/// How contacts are resolved; built from the settings once per step (in the step context).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ContactParams {
     pub restitution: f64,

@@ -1,10 +1,7 @@
 //! Rigid bodies: the state the simulation advances and the constants it needs.
 
-use crate::shape::Shape;
+use super::shape::Shape;
 use glam::{DMat3, DQuat, DVec3};
-
-/// Index of a body in [`crate::World::bodies`].
-pub type BodyId = usize;
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct RigidBody {
@@ -67,6 +64,19 @@ impl RigidBody {
             inverse_inertia,
             quarantined: false,
         }
+    }
+
+    /// The ground plane's stand-in in contact resolution: immovable, at rest.
+    pub fn ground() -> Self {
+        Self::new(
+            usize::MAX,
+            0.0,
+            DMat3::ZERO,
+            0.0,
+            true,
+            DVec3::ZERO,
+            DQuat::IDENTITY,
+        )
     }
 
     /// A body of `density` on `shape` (index `shape_index` in the world's shapes).
@@ -157,4 +167,9 @@ impl RigidBody {
             + 0.5 * w.dot(self.world_inertia() * w)
             - self.mass * gravity.dot(self.position)
     }
+}
+
+/// Whether two bodies can collide: not when either is frozen, nor when both are fixed.
+pub fn may_collide(a: &RigidBody, b: &RigidBody) -> bool {
+    !(a.quarantined || b.quarantined || a.fixed && b.fixed)
 }

@@ -2,17 +2,18 @@
 //! or a fine-step / RK4 solution), each returning its error metrics. Used by
 //! `tumble bench accuracy` and by the tests of the opt-in settings.
 
-use crate::assets;
-use crate::body::RigidBody;
-use crate::constraint::DistanceConstraint;
-use crate::settings::Settings;
-use crate::shape::Shape;
-use crate::world::World;
+use crate::scene::assets;
+use crate::sim::body::RigidBody;
+use crate::sim::constraint::DistanceConstraint;
+use crate::sim::settings::Settings;
+use crate::sim::shape::Shape;
+use crate::sim::world::World;
 use glam::{DMat3, DQuat, DVec3};
 use serde::Serialize;
 use std::time::Instant;
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "snake_case")]
 pub enum Scenario {
     FreeFall,
@@ -96,7 +97,7 @@ impl Outcome {
     }
 }
 
-fn shape(mesh: &crate::formats::TetMesh) -> Shape {
+fn shape(mesh: &crate::io::TetMesh) -> Shape {
     Shape::from_tet_mesh(mesh).expect("tumble's meshes are valid")
 }
 

@@ -1,13 +1,19 @@
-//! Readers for the coursework's file formats. Physics never parses text: these functions turn
-//! bytes into plain data (`TetMesh`, `SceneRecord`, `ConstraintRecord`) or a [`LoadError`] that
-//! names the file, the line and the problem.
+//! Files in and out. Readers for the coursework's formats turn text into plain data
+//! ([`TetMesh`], [`SceneRecord`], [`ConstraintRecord`]) or a [`LoadError`] that names the file,
+//! the line and the problem (physics never parses text); writers for meshes and trajectories;
+//! files that appear whole or not at all.
 
+pub mod atomic_file;
 mod constraint_file;
+pub mod fuzzing;
 mod medit;
 mod off;
 mod scene_file;
 mod tokens;
+pub mod trajectory;
 
+pub use crate::sim::shape::TetMesh;
+pub use atomic_file::{AtomicFile, partial_path, write_file_atomically};
 pub use constraint_file::{ConstraintRecord, parse_constraints};
 pub use medit::{parse_medit, write_medit};
 pub use off::parse_off;
@@ -63,12 +69,3 @@ impl fmt::Display for LoadError {
 }
 
 impl std::error::Error for LoadError {}
-
-/// A tetrahedral mesh as stored on disk: vertices, tetrahedra and (optionally) boundary triangles,
-/// all 0-based. Triangles are oriented outward by the readers.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct TetMesh {
-    pub vertices: Vec<glam::DVec3>,
-    pub tetrahedra: Vec<[u32; 4]>,
-    pub triangles: Vec<[u32; 3]>,
-}

@@ -10,7 +10,7 @@ pub struct RapierScene {
 }
 
 impl RapierScene {
-    pub fn from_world(source: &tumble::World) -> Self {
+    pub fn from_world(source: &crate::sim::World) -> Self {
         let mut world = PhysicsWorld::new();
         world.gravity = source.settings.gravity;
         world.integration_parameters.dt = source.settings.time_step;

@@ -1,11 +1,21 @@
 //! Narrow phase: exact contact between two convex hulls (parry3d's GJK/EPA), and against the
 //! ground plane y = 0.
 
-use crate::body::RigidBody;
-use crate::contact::Contact;
-use crate::shape::Shape;
+use super::body::RigidBody;
+use super::shape::Shape;
 use glam::DVec3;
 use parry3d_f64::math::Pose;
+
+/// A penetrating contact between body 1 and body 2.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Contact {
+    /// Penetration depth along `normal`, >= 0.
+    pub depth: f64,
+    /// Unit normal pointing from body 1 towards body 2.
+    pub normal: DVec3,
+    /// Point on body 2 deepest inside body 1 (the coursework's `penPosition`).
+    pub point2: DVec3,
+}
 
 fn pose(body: &RigidBody) -> Pose {
     Pose::from_parts(body.position, body.orientation)

@@ -1,0 +1,254 @@
+//! `tumble bench accuracy`: error against run time for every scenario, setting combination and
+//! time step, a CSV of every metric and a log-log plot per scenario with its Pareto front.
+
+use super::Progress;
+use super::plot::{Series, log_log_plot};
+use super::scenarios::{self, Scenario};
+use crate::sim::Settings;
+use crate::sim::settings::{ConstraintSchedule, RotationIntegrator};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// What to sweep.
+#[derive(Debug, Clone)]
+pub struct AccuracyConfig {
+    /// Scenarios to run (empty: all).
+    pub scenarios: Vec<Scenario>,
+    pub dts: Vec<f64>,
+    /// Reduced sweep for smoke tests (two time steps, fewer combinations).
+    pub quick: bool,
+    /// Folder for the CSV and the plots.
+    pub out: PathBuf,
+}
+
+/// The setting combinations compared: the coursework default, each opt-in alone, and all.
+pub fn combinations() -> Vec<(&'static str, Settings)> {
+    let d = Settings::default();
+    let with = |f: &dyn Fn(&mut Settings)| {
+        let mut s = d.clone();
+        f(&mut s);
+        s
+    };
+    vec![
+        ("coursework", d.clone()),
+        (
+            "gyroscopic",
+            with(&|s| s.rotation_integrator = RotationIntegrator::Gyroscopic),
+        ),
+        (
+            "angular_momentum",
+            with(&|s| s.rotation_integrator = RotationIntegrator::AngularMomentum),
+        ),
+        (
+            "skip_separating",
+            with(&|s| s.skip_separating_contacts = true),
+        ),
+        (
+            "restitution_threshold",
+            with(&|s| s.restitution_threshold = 0.5),
+        ),
+        ("contact_patches", with(&|s| s.contact_patches = true)),
+        ("substeps_4", with(&|s| s.substeps = 4)),
+        ("iterations_100", with(&|s| s.max_iterations = 100)),
+        (
+            "sparse_schedule",
+            with(&|s| s.constraint_schedule = ConstraintSchedule::Sparse),
+        ),
+        ("accurate", Settings::accurate()),
+    ]
+}
+
+/// The combinations of the reduced (`--quick`) sweep.
+const QUICK_COMBINATIONS: [&str; 4] = [
+    "coursework",
+    "gyroscopic",
+    "restitution_threshold",
+    "accurate",
+];
+
+/// Restitutions of the bounce scenario: one run per value and combination.
+const BOUNCE_RESTITUTIONS: [f64; 3] = [1.0, 0.8, 0.5];
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Row {
+    pub wall_per_sim_second: f64,
+    pub metrics: BTreeMap<String, f64>,
+    pub finite: bool,
+}
+
+/// scenario (bounce split by restitution) -> combination -> dt -> row.
+pub type AccuracyResults = BTreeMap<String, BTreeMap<String, BTreeMap<String, Row>>>;
+
+#[derive(Debug, Clone)]
+pub struct AccuracyReport {
+    pub results: AccuracyResults,
+    pub dts: Vec<f64>,
+    pub csv: PathBuf,
+    pub plots: Vec<PathBuf>,
+}
+
+/// One run: a scenario (named as in the results) with its settings.
+struct Job {
+    scenario: Scenario,
+    name: String,
+    combination: &'static str,
+    settings: Settings,
+    dt: f64,
+}
+
+fn jobs(config: &AccuracyConfig) -> (Vec<Job>, Vec<f64>) {
+    let scenarios = if config.scenarios.is_empty() {
+        Scenario::ALL.to_vec()
+    } else {
+        config.scenarios.clone()
+    };
+    let mut dts = config.dts.clone();
+    let mut combos = combinations();
+    if config.quick {
+        dts = vec![0.04, 0.01];
+        combos.retain(|(name, _)| QUICK_COMBINATIONS.contains(name));
+    }
+    let mut jobs = Vec::new();
+    for &scenario in &scenarios {
+        let variants: Vec<(String, Option<f64>)> = if scenario == Scenario::Bounce {
+            BOUNCE_RESTITUTIONS
+                .iter()
+                .map(|e| (format!("bounce_e{e}"), Some(*e)))
+                .collect()
+        } else {
+            vec![(scenario.name().to_string(), None)]
+        };
+        for (name, restitution) in &variants {
+            for (combination, base) in &combos {
+                for &dt in &dts {
+                    let mut settings = Settings {
+                        time_step: dt,
+                        ..base.clone()
+                    };
+                    if let Some(e) = restitution {
+                        settings.restitution = *e;
+                    }
+                    jobs.push(Job {
+                        scenario,
+                        name: name.clone(),
+                        combination,
+                        settings,
+                        dt,
+                    });
+                }
+            }
+        }
+    }
+    (jobs, dts)
+}
+
+/// Runs the sweep, writes `accuracy.csv` and one plot per scenario into `config.out`.
+pub fn run(config: &AccuracyConfig, progress: &dyn Progress) -> anyhow::Result<AccuracyReport> {
+    anyhow::ensure!(
+        config.dts.iter().all(|dt| dt.is_finite() && *dt > 0.0),
+        "time steps must be positive"
+    );
+    let (jobs, dts) = jobs(config);
+    progress.start(jobs.len() as u64, "bench accuracy");
+    let mut results = AccuracyResults::new();
+    let mut csv = String::from("scenario,combination,dt,wall_per_sim_second,metric,value\n");
+    for (k, job) in jobs.iter().enumerate() {
+        progress.message(&format!("{} {} dt={}", job.name, job.combination, job.dt));
+        let outcome = scenarios::run(job.scenario, &job.settings);
+        for (metric, value) in &outcome.metrics {
+            csv.push_str(&format!(
+                "{},{},{},{:.6e},{metric},{value:.6e}\n",
+                job.name, job.combination, job.dt, outcome.wall_per_sim_second
+            ));
+        }
+        let row = Row {
+            wall_per_sim_second: outcome.wall_per_sim_second,
+            metrics: outcome.metrics.iter().cloned().collect(),
+            finite: outcome.finite,
+        };
+        results
+            .entry(job.name.clone())
+            .or_default()
+            .entry(job.combination.to_string())
+            .or_default()
+            .insert(format!("{}", job.dt), row);
+        progress.set_position(k as u64 + 1);
+    }
+    progress.finish();
+    std::fs::create_dir_all(&config.out)?;
+    let csv_path = config.out.join("accuracy.csv");
+    std::fs::write(&csv_path, csv)?;
+    let plots = write_plots(&results, &config.out)?;
+    Ok(AccuracyReport {
+        results,
+        dts,
+        csv: csv_path,
+        plots,
+    })
+}
+
+/// One log-log plot of error against run time per scenario, with the Pareto front.
+fn write_plots(results: &AccuracyResults, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let mut plots = Vec::new();
+    for (scenario_name, by_combo) in results {
+        let metric = primary_metric_of(scenario_name);
+        let mut series = Vec::new();
+        let mut all_points = Vec::new();
+        for (combo, by_dt) in by_combo {
+            let mut points: Vec<(f64, f64)> = by_dt
+                .values()
+                .filter_map(|r| Some((r.wall_per_sim_second, *r.metrics.get(metric)?)))
+                .collect();
+            points.sort_by(|a, b| a.0.total_cmp(&b.0));
+            all_points.extend(points.iter().copied());
+            series.push(Series {
+                name: combo.clone(),
+                points,
+                pareto: false,
+            });
+        }
+        series.push(Series {
+            name: "Pareto front".into(),
+            points: pareto_front(&all_points),
+            pareto: true,
+        });
+        let path = out.join(format!("accuracy-{scenario_name}.svg"));
+        log_log_plot(
+            &path,
+            &format!("{scenario_name}: {metric} against run time"),
+            "wall seconds per simulated second",
+            metric,
+            &series,
+        )?;
+        plots.push(path);
+    }
+    Ok(plots)
+}
+
+/// The plotted metric of a result row's scenario ("bounce_e0.8" is a bounce).
+pub fn primary_metric_of(scenario_name: &str) -> &'static str {
+    Scenario::ALL
+        .iter()
+        .find(|s| scenario_name.starts_with(s.name()))
+        .map_or("error", |s| s.primary_metric())
+}
+
+/// Points not dominated in (time, error): nothing else is both faster and more accurate.
+pub fn pareto_front(points: &[(f64, f64)]) -> Vec<(f64, f64)> {
+    let mut sorted: Vec<(f64, f64)> = points
+        .iter()
+        .copied()
+        .filter(|(x, y)| x.is_finite() && y.is_finite())
+        .collect();
+    sorted.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    let mut front = Vec::new();
+    let mut best = f64::INFINITY;
+    for (x, y) in sorted {
+        if y < best {
+            front.push((x, y));
+            best = y;
+        }
+    }
+    front
+}

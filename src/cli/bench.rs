@@ -1,0 +1,237 @@
+//! `tumble bench scale|accuracy|soak`: arguments, and the reports printed as tables or JSON.
+//! The measuring is done by `tumble::bench`.
+
+use super::ProgressBar;
+use clap::Args;
+use std::path::PathBuf;
+use tumble::Settings;
+use tumble::bench::accuracy::{AccuracyConfig, AccuracyReport, primary_metric_of};
+use tumble::bench::scale::{ScaleConfig, ScaleReport};
+use tumble::bench::scenarios::Scenario;
+use tumble::bench::soak::SoakResult;
+
+#[derive(Debug, Args)]
+pub struct ScaleArgs {
+    /// Scenes to run (sparse, pile, chain).
+    #[arg(long, value_delimiter = ',', default_values_t = ["sparse".to_string(), "pile".to_string(), "chain".to_string()])]
+    pub scenes: Vec<String>,
+    /// Body counts.
+    #[arg(long, value_delimiter = ',', default_values_t = [100usize, 1000, 10000])]
+    pub sizes: Vec<usize>,
+    /// Also run sparse-100000.
+    #[arg(long)]
+    pub huge: bool,
+    /// Measured steps per run (after the warm-up).
+    #[arg(long, default_value_t = 500)]
+    pub steps: usize,
+    /// Warm-up steps per run.
+    #[arg(long, default_value_t = 20)]
+    pub warmup: usize,
+    /// Wall-clock cap per run in seconds: slow variants measure fewer steps.
+    #[arg(long, default_value_t = 30.0)]
+    pub max_seconds: f64,
+    /// Short smoke run (sizes 100 and 1000, 20 steps).
+    #[arg(long)]
+    pub quick: bool,
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Folder for the CSV and the plots.
+    #[arg(long, default_value = "bench-out")]
+    pub out: PathBuf,
+}
+
+#[derive(Debug, Args)]
+pub struct AccuracyArgs {
+    /// Scenarios to run (default: all).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    pub scenarios: Vec<Scenario>,
+    /// Time steps to sweep.
+    #[arg(long, value_delimiter = ',', default_values_t = [0.04, 0.02, 0.01, 0.005, 0.0025])]
+    pub dts: Vec<f64>,
+    /// Reduced sweep for smoke tests (two time steps, fewer combinations).
+    #[arg(long)]
+    pub quick: bool,
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Folder for the CSV and the plots.
+    #[arg(long, default_value = "bench-out")]
+    pub out: PathBuf,
+}
+
+#[derive(Debug, Args)]
+pub struct SoakArgs {
+    /// Steps per scene.
+    #[arg(long, default_value_t = 100_000)]
+    pub steps: u64,
+    /// Use the `--accurate` preset instead of the coursework defaults.
+    #[arg(long)]
+    pub accurate: bool,
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn scale(args: &ScaleArgs) -> anyhow::Result<()> {
+    let config = ScaleConfig {
+        scenes: args.scenes.clone(),
+        sizes: args.sizes.clone(),
+        huge: args.huge,
+        steps: args.steps,
+        warmup: args.warmup,
+        max_seconds: args.max_seconds,
+        quick: args.quick,
+        out: args.out.clone(),
+    };
+    let report = tumble::bench::scale::run(&config, &ProgressBar::default())?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print_scale(&report);
+    }
+    Ok(())
+}
+
+fn print_scale(report: &ScaleReport) {
+    println!(
+        "{:<14} {:<18} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}",
+        "scene",
+        "variant",
+        "ms/step",
+        "broad",
+        "narrow",
+        "resolve",
+        "constr",
+        "integr",
+        "visits",
+        "peakMiB"
+    );
+    for (key, by_variant) in &report.results {
+        for (v, m) in by_variant {
+            let s = |k: &str| m.mean_stage_ms.get(k).copied().unwrap_or(0.0);
+            println!(
+                "{key:<14} {v:<18} {:>10.4} {:>9.4} {:>9.4} {:>9.4} {:>9.4} {:>9.4} {:>9.0} {:>9.2}",
+                m.median_ms_per_step,
+                s("broad_phase"),
+                s("narrow_phase"),
+                s("contact_resolution") + s("ground"),
+                s("constraints"),
+                s("integrate"),
+                m.constraint_visits_per_step,
+                m.peak_mib
+            );
+        }
+        if let Some(sp) = report.speedups.get(key) {
+            let parts: Vec<String> = sp.iter().map(|(k, v)| format!("{k} = {v:.1}x")).collect();
+            println!("{:<14} {}", "", parts.join(", "));
+        }
+    }
+    println!("\n{}", report.rapier);
+    println!(
+        "wrote {} and {}",
+        report.csv.display(),
+        report
+            .plots
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+}
+
+pub fn accuracy(args: &AccuracyArgs) -> anyhow::Result<()> {
+    let config = AccuracyConfig {
+        scenarios: args.scenarios.clone(),
+        dts: args.dts.clone(),
+        quick: args.quick,
+        out: args.out.clone(),
+    };
+    let report = tumble::bench::accuracy::run(&config, &ProgressBar::default())?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report.results)?);
+    } else {
+        print_accuracy(&report);
+    }
+    Ok(())
+}
+
+fn print_accuracy(report: &AccuracyReport) {
+    for (scenario_name, by_combo) in &report.results {
+        let metric = primary_metric_of(scenario_name);
+        println!("\n{scenario_name} ({metric}; wall ms per simulated second in brackets)");
+        print!("{:<24}", "combination \\ dt");
+        for dt in &report.dts {
+            print!("{:>22}", dt);
+        }
+        println!();
+        for (combo, by_dt) in by_combo {
+            print!("{combo:<24}");
+            for dt in &report.dts {
+                match by_dt.get(&format!("{dt}")) {
+                    Some(r) => print!(
+                        "{:>22}",
+                        format!(
+                            "{:.3e} [{:.2}]",
+                            r.metrics.get(metric).copied().unwrap_or(f64::NAN),
+                            1000.0 * r.wall_per_sim_second
+                        )
+                    ),
+                    None => print!("{:>22}", "-"),
+                }
+            }
+            println!();
+        }
+    }
+    println!(
+        "\nwrote {} and {} plots beside it",
+        report.csv.display(),
+        report.plots.len(),
+    );
+}
+
+pub fn soak(args: &SoakArgs) -> anyhow::Result<()> {
+    let settings = if args.accurate {
+        Settings::accurate()
+    } else {
+        Settings::default()
+    };
+    let results = tumble::bench::soak::run(&settings, args.steps, &ProgressBar::default())?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&results)?);
+    } else {
+        print_soak(&results);
+    }
+    Ok(())
+}
+
+fn print_soak(results: &[SoakResult]) {
+    println!(
+        "{:<10} {:>8} {:>8} {:>10} {:>12} {:>12} {:>8} {:>13} {:>13} {:>6}",
+        "scene",
+        "steps",
+        "wall s",
+        "max drift",
+        "late speed",
+        "worst viol.",
+        "budget",
+        "energy start",
+        "energy end",
+        "finite"
+    );
+    for r in results {
+        println!(
+            "{:<10} {:>8} {:>8.2} {:>10.3} {:>12.4} {:>12.3e} {:>8} {:>13.6e} {:>13.6e} {:>6}",
+            r.scene,
+            r.steps,
+            r.wall_s,
+            r.max_drift,
+            r.late_max_speed,
+            r.worst_relative_violation,
+            r.budget_hits,
+            r.energy_start,
+            r.energy_end,
+            r.finite
+        );
+    }
+}

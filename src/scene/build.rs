@@ -1,0 +1,194 @@
+//! Turning parsed scene and constraint records into a [`World`]: shapes loaded once per mesh
+//! file, bodies on them, and each constraint record as a lower and an upper inequality.
+
+use super::ConstraintsChoice;
+use super::files::{Disk, FileSource};
+use crate::io::{
+    ConstraintRecord, LoadError, SceneRecord, TetMesh, parse_constraints, parse_medit, parse_off,
+    parse_scene,
+};
+use crate::sim::body::RigidBody;
+use crate::sim::constraint::DistanceConstraint;
+use crate::sim::settings::Settings;
+use crate::sim::shape::Shape;
+use crate::sim::world::World;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+pub(super) fn load_with(
+    source: &dyn FileSource,
+    path: &Path,
+    constraints: &ConstraintsChoice,
+    settings: Settings,
+) -> Result<World, LoadError> {
+    let text = source.read(path)?;
+    let records = parse_scene(path, &text)?;
+    let folder = path.parent().unwrap_or(Path::new(""));
+
+    let mut shapes = Vec::new();
+    let mut shape_names = Vec::new();
+    let mut shape_of_path: HashMap<PathBuf, usize> = HashMap::new();
+    let mut bodies = Vec::with_capacity(records.len());
+    for record in &records {
+        let mesh_path = folder.join(&record.mesh_path);
+        let shape_index = match shape_of_path.get(&mesh_path) {
+            Some(&index) => index,
+            None => {
+                let shape = load_shape(source, &mesh_path, path, record)?;
+                shapes.push(shape);
+                shape_names.push(record.mesh_path.clone());
+                shape_of_path.insert(mesh_path, shapes.len() - 1);
+                shapes.len() - 1
+            }
+        };
+        let shape = &shapes[shape_index];
+        let body = RigidBody::on_shape(
+            shape,
+            shape_index,
+            record.density,
+            record.fixed,
+            record.position,
+            record.orientation,
+        );
+        let invertible = body.inverse_mass.is_finite()
+            && body.inverse_inertia.is_finite()
+            && body.inverse_mass > 0.0;
+        if !body.fixed && !invertible {
+            return Err(LoadError::new(
+                path,
+                Some(record.line),
+                "the body's mass or inertia is not invertible (density or mesh too small or too large)",
+            ));
+        }
+        bodies.push(body);
+    }
+
+    let constraint_path = match constraints {
+        ConstraintsChoice::None => None,
+        ConstraintsChoice::File(p) => Some(p.clone()),
+        ConstraintsChoice::Auto => {
+            super::default_constraints_path(path).filter(|p| source.exists(p))
+        }
+    };
+    let mut warnings = Vec::new();
+    let mut distance_constraints = Vec::new();
+    if let Some(cpath) = constraint_path {
+        // A user-named file is read from disk even when the scene is built in.
+        let text = match constraints {
+            ConstraintsChoice::File(_) => Disk.read(&cpath)?,
+            _ => source.read(&cpath)?,
+        };
+        let records = parse_constraints(&cpath, &text)?;
+        distance_constraints =
+            build_constraints(&cpath, &records, &bodies, &shapes, &mut warnings)?;
+    }
+    let mut world = World::new(shapes, shape_names, bodies, distance_constraints, settings);
+    world.warnings = warnings;
+    Ok(world)
+}
+
+fn load_shape(
+    source: &dyn FileSource,
+    mesh_path: &Path,
+    scene_path: &Path,
+    record: &SceneRecord,
+) -> Result<Shape, LoadError> {
+    let extension = mesh_path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase());
+    let parse: fn(&Path, &str) -> Result<TetMesh, LoadError> = match extension.as_deref() {
+        Some("mesh") => parse_medit,
+        Some("off") => parse_off,
+        _ => {
+            return Err(LoadError::new(
+                scene_path,
+                Some(record.line),
+                format!(
+                    "mesh '{}' is neither a .mesh nor an .off file",
+                    record.mesh_path
+                ),
+            ));
+        }
+    };
+    if !source.exists(mesh_path) {
+        return Err(LoadError::new(
+            scene_path,
+            Some(record.line),
+            format!(
+                "mesh file '{}' not found (looked for {})",
+                record.mesh_path,
+                mesh_path.display()
+            ),
+        ));
+    }
+    let text = source.read(mesh_path)?;
+    let mesh = parse(mesh_path, &text)?;
+    Shape::from_tet_mesh(&mesh).map_err(|e| LoadError::new(mesh_path, None, e.to_string()))
+}
+
+/// Each record becomes a lower and an upper inequality on the distance between the two vertices,
+/// relative to their distance `d0` once the scene is placed.
+fn build_constraints(
+    file: &Path,
+    records: &[ConstraintRecord],
+    bodies: &[RigidBody],
+    shapes: &[Shape],
+    warnings: &mut Vec<String>,
+) -> Result<Vec<DistanceConstraint>, LoadError> {
+    let mut out = Vec::with_capacity(2 * records.len());
+    for r in records {
+        for (body, vertex) in [(r.body1, r.vertex1), (r.body2, r.vertex2)] {
+            if body >= bodies.len() {
+                return Err(LoadError::new(
+                    file,
+                    Some(r.line),
+                    format!(
+                        "body index {body} is out of range: the scene has {} bodies",
+                        bodies.len()
+                    ),
+                ));
+            }
+            let count = shapes[bodies[body].shape].rest_vertices.len();
+            if vertex >= count {
+                return Err(LoadError::new(
+                    file,
+                    Some(r.line),
+                    format!(
+                        "vertex index {vertex} is out of range: body {body}'s mesh has {count} vertices"
+                    ),
+                ));
+            }
+        }
+        if r.body1 == r.body2 {
+            return Err(LoadError::new(
+                file,
+                Some(r.line),
+                format!(
+                    "a constraint needs two different bodies, both are {}",
+                    r.body1
+                ),
+            ));
+        }
+        let (b1, b2) = (&bodies[r.body1], &bodies[r.body2]);
+        if b1.fixed && b2.fixed {
+            warnings.push(format!(
+                "{}:{}: constraint between two fixed bodies ({} and {}) ignored",
+                file.display(),
+                r.line,
+                r.body1,
+                r.body2
+            ));
+            continue;
+        }
+        out.extend(DistanceConstraint::lower_and_upper(
+            bodies,
+            shapes,
+            (r.body1, r.vertex1),
+            (r.body2, r.vertex2),
+            r.lower,
+            r.upper,
+        ));
+    }
+    Ok(out)
+}

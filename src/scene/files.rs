@@ -1,0 +1,151 @@
+//! Where scene, mesh and constraint files are read from: the disk, or the copies of tumble's
+//! own scenes and meshes compiled into the binary.
+
+use crate::io::{LoadError, limits};
+use std::path::{Component, Path};
+
+/// Files compiled into the binary, addressed by their path in the repository.
+const EMBEDDED: &[(&str, &str)] = &[
+    (
+        "scenes/mixed-scene.txt",
+        include_str!("../../scenes/mixed-scene.txt"),
+    ),
+    (
+        "scenes/tower-scene.txt",
+        include_str!("../../scenes/tower-scene.txt"),
+    ),
+    (
+        "scenes/two-chain-scene.txt",
+        include_str!("../../scenes/two-chain-scene.txt"),
+    ),
+    (
+        "scenes/two-chain-constraints.txt",
+        include_str!("../../scenes/two-chain-constraints.txt"),
+    ),
+    (
+        "scenes/cube-scene.txt",
+        include_str!("../../scenes/cube-scene.txt"),
+    ),
+    (
+        "scenes/cube-constraints.txt",
+        include_str!("../../scenes/cube-constraints.txt"),
+    ),
+    (
+        "scenes/stress-scene.txt",
+        include_str!("../../scenes/stress-scene.txt"),
+    ),
+    (
+        "scenes/two-cylinders-scene.txt",
+        include_str!("../../scenes/two-cylinders-scene.txt"),
+    ),
+    (
+        "scenes/two-cylinders-constraints.txt",
+        include_str!("../../scenes/two-cylinders-constraints.txt"),
+    ),
+    (
+        "assets/tetrahedron.mesh",
+        include_str!("../../assets/tetrahedron.mesh"),
+    ),
+    ("assets/box.mesh", include_str!("../../assets/box.mesh")),
+    (
+        "assets/octahedron.mesh",
+        include_str!("../../assets/octahedron.mesh"),
+    ),
+    (
+        "assets/long-octahedron.mesh",
+        include_str!("../../assets/long-octahedron.mesh"),
+    ),
+    (
+        "assets/cylinder.mesh",
+        include_str!("../../assets/cylinder.mesh"),
+    ),
+    (
+        "assets/ellipsoid.mesh",
+        include_str!("../../assets/ellipsoid.mesh"),
+    ),
+];
+
+/// Where scene, mesh and constraint files are read from.
+pub(super) trait FileSource {
+    fn read(&self, path: &Path) -> Result<String, LoadError>;
+    fn exists(&self, path: &Path) -> bool;
+}
+
+pub(super) struct Disk;
+
+impl FileSource for Disk {
+    fn read(&self, path: &Path) -> Result<String, LoadError> {
+        let meta = std::fs::metadata(path)
+            .map_err(|e| LoadError::new(path, None, format!("cannot open: {e}")))?;
+        if meta.is_dir() {
+            return Err(LoadError::new(path, None, "is a directory, not a file"));
+        }
+        if meta.len() > limits::MAX_FILE_BYTES {
+            return Err(LoadError::new(
+                path,
+                None,
+                format!(
+                    "file is {} bytes, more than the limit of {}",
+                    meta.len(),
+                    limits::MAX_FILE_BYTES
+                ),
+            ));
+        }
+        let bytes = std::fs::read(path)
+            .map_err(|e| LoadError::new(path, None, format!("cannot read: {e}")))?;
+        String::from_utf8(bytes).map_err(|e| {
+            LoadError::new(
+                path,
+                None,
+                format!(
+                    "not a text file (invalid UTF-8 at byte {})",
+                    e.utf8_error().valid_up_to()
+                ),
+            )
+        })
+    }
+    fn exists(&self, path: &Path) -> bool {
+        path.is_file()
+    }
+}
+
+pub(super) struct Embedded;
+
+impl Embedded {
+    fn key(path: &Path) -> String {
+        let mut parts: Vec<String> = Vec::new();
+        for component in path.components() {
+            match component {
+                Component::ParentDir => {
+                    parts.pop();
+                }
+                Component::Normal(s) => parts.push(s.to_string_lossy().into_owned()),
+                _ => {}
+            }
+        }
+        parts.join("/")
+    }
+}
+
+impl FileSource for Embedded {
+    fn read(&self, path: &Path) -> Result<String, LoadError> {
+        let key = Self::key(path);
+        EMBEDDED
+            .iter()
+            .find(|(name, _)| *name == key)
+            .map(|(_, text)| text.to_string())
+            .ok_or_else(|| LoadError::new(path, None, "no such file among the built-in scenes"))
+    }
+    fn exists(&self, path: &Path) -> bool {
+        let key = Self::key(path);
+        EMBEDDED.iter().any(|(name, _)| *name == key)
+    }
+}
+
+/// Text of a built-in file (used by the asset tests and `tumble scenes`).
+pub fn embedded_file(path: &str) -> Option<&'static str> {
+    EMBEDDED
+        .iter()
+        .find(|(name, _)| *name == path)
+        .map(|(_, text)| *text)
+}

@@ -1,0 +1,249 @@
+//! The coursework solver's contact stages: body pairs detected and resolved one at a time in
+//! (i, j) order exactly as the coursework's all-pairs loop does (each pair is tested with the
+//! poses left by the pairs before it), then every body against the ground plane.
+
+use super::contact::{ContactParams, resolve_contact};
+use crate::sim::body::{RigidBody, may_collide};
+use crate::sim::broad_phase::BroadPhase;
+use crate::sim::constraint::pair_mut;
+use crate::sim::narrow_phase::{
+    Contact, body_contact, body_contact_patch, ground_contact, oriented_boxes_overlap,
+};
+use crate::sim::pair_queue::{PairQueue, PairSource};
+use crate::sim::settings::BroadPhase as BroadPhaseKind;
+use crate::sim::shape::Shape;
+use crate::sim::stats::{Stage, StepStats, Stopwatch};
+use crate::sim::step_context::StepContext;
+use rayon::prelude::*;
+
+/// What the body-contact stage keeps from one step to the next.
+#[derive(Debug, Clone, Default)]
+pub struct ContactStage {
+    /// Share of candidate pairs the last stage computed sequentially (because a body had moved):
+    /// when high, the parallel precomputation is not worth it.
+    recomputed_fraction: f64,
+}
+
+/// The bodies and shapes a stage works on.
+pub struct Bodies<'a> {
+    pub bodies: &'a mut [RigidBody],
+    pub shapes: &'a [Shape],
+}
+
+/// Exact contact between bodies `i` and `j` at their current poses: disjoint oriented boxes
+/// first (cheap and exact), then the hulls.
+pub fn contact_between(
+    bodies: &[RigidBody],
+    shapes: &[Shape],
+    i: usize,
+    j: usize,
+    patches: bool,
+) -> Option<Contact> {
+    let (a, b) = (&bodies[i], &bodies[j]);
+    let (shape_a, shape_b) = (&shapes[a.shape], &shapes[b.shape]);
+    if !oriented_boxes_overlap(a, shape_a, b, shape_b) {
+        return None;
+    }
+    let detect = if patches {
+        body_contact_patch
+    } else {
+        body_contact
+    };
+    detect(a, shape_a, b, shape_b)
+}
+
+fn apply_contact(
+    bodies: &mut [RigidBody],
+    (i, j): (usize, usize),
+    contact: &Contact,
+    params: &ContactParams,
+    stats: &mut StepStats,
+) {
+    let (a, b) = pair_mut(bodies, i, j);
+    resolve_contact(a, b, contact, params);
+    stats.contacts += 1;
+    stats.max_penetration = stats.max_penetration.max(contact.depth);
+}
+
+impl ContactStage {
+    /// Body-body contacts of one substep. The grid only skips pairs whose boxes cannot overlap
+    /// and re-queries bodies that a resolution moved, so it yields the all-pairs loop's contacts
+    /// in the same order.
+    pub fn resolve_body_contacts(
+        &mut self,
+        ctx: &StepContext,
+        world: Bodies,
+        broad: &mut BroadPhase,
+        watch: &mut Stopwatch,
+        stats: &mut StepStats,
+    ) {
+        watch.enter(Stage::BroadPhase);
+        broad.update_boxes(world.bodies, world.shapes);
+        match ctx.settings.broad_phase {
+            BroadPhaseKind::AllPairs => all_pairs(ctx, world, broad, watch, stats),
+            BroadPhaseKind::Grid => self.grid_pairs(ctx, world, broad, watch, stats),
+        }
+    }
+
+    fn grid_pairs(
+        &mut self,
+        ctx: &StepContext,
+        world: Bodies,
+        broad: &mut BroadPhase,
+        watch: &mut Stopwatch,
+        stats: &mut StepStats,
+    ) {
+        let Bodies { bodies, shapes } = world;
+        let mut queue = {
+            let bodies = &*bodies;
+            broad.candidate_pairs(
+                bodies,
+                shapes,
+                |i, j| may_collide(&bodies[i], &bodies[j]),
+                &mut stats.pairs_tested,
+            )
+        };
+        watch.enter(Stage::NarrowPhase);
+        // Skipped (each pair computed when it is reached) on one thread, or when most pairs had
+        // to be computed again last step anyway: results are the same either way.
+        let eager = rayon::current_num_threads() > 1 && self.recomputed_fraction < 0.5;
+        let precomputed = if eager {
+            precompute(ctx, bodies, shapes, broad, queue.candidates())
+        } else {
+            Vec::new()
+        };
+        let queries_before = stats.narrow_phase_queries;
+        stats.narrow_phase_queries += precomputed.len();
+        watch.enter(Stage::ContactResolution);
+        resolve_in_order(
+            ctx,
+            Bodies { bodies, shapes },
+            broad,
+            &mut queue,
+            &precomputed,
+            watch,
+            stats,
+        );
+        let recomputed = stats.narrow_phase_queries - queries_before - precomputed.len();
+        self.recomputed_fraction = recomputed as f64 / queue.candidates().len().max(1) as f64;
+    }
+}
+
+/// The coursework's literal loop over every pair (i < j); box tests count as broad phase.
+fn all_pairs(
+    ctx: &StepContext,
+    world: Bodies,
+    broad: &mut BroadPhase,
+    watch: &mut Stopwatch,
+    stats: &mut StepStats,
+) {
+    let Bodies { bodies, shapes } = world;
+    let n = bodies.len();
+    for i in 0..n {
+        for j in i + 1..n {
+            if !may_collide(&bodies[i], &bodies[j]) {
+                continue;
+            }
+            stats.pairs_tested += 1;
+            if !broad.overlap(i, j) {
+                continue;
+            }
+            stats.narrow_phase_queries += 1;
+            watch.enter(Stage::NarrowPhase);
+            let contact = contact_between(bodies, shapes, i, j, ctx.settings.contact_patches);
+            if let Some(contact) = contact {
+                watch.enter(Stage::ContactResolution);
+                apply_contact(bodies, (i, j), &contact, &ctx.contact, stats);
+                broad.refresh(i, &bodies[i], shapes);
+                broad.refresh(j, &bodies[j], shapes);
+            }
+            watch.enter(Stage::BroadPhase);
+        }
+    }
+}
+
+/// The narrow phase of every candidate whose boxes overlap after integration, in parallel.
+fn precompute(
+    ctx: &StepContext,
+    bodies: &[RigidBody],
+    shapes: &[Shape],
+    broad: &BroadPhase,
+    candidates: &[(u32, u32)],
+) -> Vec<Option<Contact>> {
+    candidates
+        .par_iter()
+        .with_min_len(16)
+        .map(|&(i, j)| {
+            let (i, j) = (i as usize, j as usize);
+            if broad.overlap(i, j) && may_collide(&bodies[i], &bodies[j]) {
+                contact_between(bodies, shapes, i, j, ctx.settings.contact_patches)
+            } else {
+                None
+            }
+        })
+        .collect()
+}
+
+/// Sequential resolution in pair order. A pair whose bodies a resolution moved is tested again
+/// at the new poses; a body that left its proxy box brings its new pairs into the queue.
+fn resolve_in_order(
+    ctx: &StepContext,
+    world: Bodies,
+    broad: &mut BroadPhase,
+    queue: &mut PairQueue,
+    precomputed: &[Option<Contact>],
+    watch: &mut Stopwatch,
+    stats: &mut StepStats,
+) {
+    let Bodies { bodies, shapes } = world;
+    let mut moved = vec![false; bodies.len()];
+    while let Some(((i, j), source)) = queue.pop() {
+        let contact = match source {
+            PairSource::Candidate(k) if !precomputed.is_empty() && !moved[i] && !moved[j] => {
+                precomputed[k]
+            }
+            _ => {
+                if !broad.overlap(i, j) || !may_collide(&bodies[i], &bodies[j]) {
+                    continue;
+                }
+                let outer = watch.enter(Stage::NarrowPhase);
+                let c = contact_between(bodies, shapes, i, j, ctx.settings.contact_patches);
+                watch.resume(outer);
+                stats.narrow_phase_queries += 1;
+                c
+            }
+        };
+        let Some(contact) = contact else { continue };
+        apply_contact(bodies, (i, j), &contact, &ctx.contact, stats);
+        for b in [i, j] {
+            if bodies[b].is_dynamic() {
+                moved[b] = true;
+                broad.body_moved(b, &bodies[b], shapes, queue);
+            }
+        }
+    }
+}
+
+/// Every movable body whose lowest vertex is at or below y = 0 collides with the ground, an
+/// immovable body at rest. Only bodies whose box (`boxes`) reaches y = 0 are looked at.
+pub fn resolve_ground_contacts(
+    ctx: &StepContext,
+    world: Bodies,
+    boxes: &[crate::sim::aabb::Aabb],
+    stats: &mut StepStats,
+) {
+    let Bodies { bodies, shapes } = world;
+    let mut ground = RigidBody::ground();
+    for (index, body) in bodies.iter_mut().enumerate() {
+        if !body.is_dynamic() || boxes[index].min.y > 0.0 {
+            continue;
+        }
+        let patches = ctx.settings.contact_patches;
+        let Some(contact) = ground_contact(body, &shapes[body.shape], patches) else {
+            continue;
+        };
+        resolve_contact(body, &mut ground, &contact, &ctx.contact);
+        stats.ground_contacts += 1;
+        stats.max_penetration = stats.max_penetration.max(contact.depth);
+    }
+}

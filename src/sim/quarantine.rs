@@ -1,0 +1,43 @@
+//! The pose check that ends every step: a body whose state went non-finite or absurdly fast is
+//! frozen at its last finite pose, so NaN never reaches other bodies through contacts or
+//! constraints.
+
+use super::body::RigidBody;
+use glam::{DQuat, DVec3};
+
+/// Speeds above this are treated as a blown-up state and quarantined.
+pub const ABSURD_SPEED: f64 = 1e12;
+
+#[derive(Debug, Clone, Default)]
+pub struct Quarantine {
+    /// Each body's last pose known finite.
+    last_good: Vec<(DVec3, DQuat)>,
+}
+
+impl Quarantine {
+    pub fn new(bodies: &[RigidBody]) -> Self {
+        Self {
+            last_good: bodies.iter().map(|b| (b.position, b.orientation)).collect(),
+        }
+    }
+
+    /// Freezes the bodies that blew up since the last check; returns their indices.
+    pub fn check(&mut self, bodies: &mut [RigidBody], frozen: &mut Vec<usize>) {
+        for (index, body) in bodies.iter_mut().enumerate() {
+            if body.quarantined {
+                continue;
+            }
+            let absurd = body.linear_velocity.length() > ABSURD_SPEED
+                || body.angular_velocity.length() > ABSURD_SPEED;
+            if body.is_finite() && !absurd {
+                self.last_good[index] = (body.position, body.orientation);
+                continue;
+            }
+            (body.position, body.orientation) = self.last_good[index];
+            body.linear_velocity = DVec3::ZERO;
+            body.angular_velocity = DVec3::ZERO;
+            body.quarantined = true;
+            frozen.push(index);
+        }
+    }
+}

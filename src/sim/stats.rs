@@ -1,0 +1,230 @@
+//! What one step did, returned by `World::step` rather than printed, and the stopwatch that
+//! times its stages.
+
+use serde::Serialize;
+use serde::ser::SerializeMap;
+use std::time::Instant;
+
+/// The stages of a step, in the order they run. The one list of stage names: statistics, `tumble
+/// run`, the benchmarks and the viewer panel all iterate over [`Stage::ALL`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Stage {
+    /// Gravity into velocities, velocities into poses.
+    Integrate,
+    /// World boxes, the grid, candidate pairs.
+    BroadPhase,
+    /// Exact contact queries between body hulls.
+    NarrowPhase,
+    /// Body-body contacts resolved by projection and impulse.
+    ContactResolution,
+    /// Body-ground contacts resolved by projection and impulse.
+    Ground,
+    /// Distance constraints.
+    Constraints,
+    /// Finiteness check: bodies whose state blew up are frozen at their last good pose.
+    PoseCheck,
+}
+
+impl Stage {
+    pub const COUNT: usize = 7;
+    pub const ALL: [Stage; Stage::COUNT] = [
+        Stage::Integrate,
+        Stage::BroadPhase,
+        Stage::NarrowPhase,
+        Stage::ContactResolution,
+        Stage::Ground,
+        Stage::Constraints,
+        Stage::PoseCheck,
+    ];
+
+    /// snake_case name, as in JSON and CSV columns.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Integrate => "integrate",
+            Stage::BroadPhase => "broad_phase",
+            Stage::NarrowPhase => "narrow_phase",
+            Stage::ContactResolution => "contact_resolution",
+            Stage::Ground => "ground",
+            Stage::Constraints => "constraints",
+            Stage::PoseCheck => "pose_check",
+        }
+    }
+
+    fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// Seconds spent in each stage. Serialises as `{stage name: seconds}`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StageTimings([f64; Stage::COUNT]);
+
+impl StageTimings {
+    pub fn get(&self, stage: Stage) -> f64 {
+        self.0[stage.index()]
+    }
+
+    pub fn add_to(&mut self, stage: Stage, seconds: f64) {
+        self.0[stage.index()] += seconds;
+    }
+
+    pub fn total(&self) -> f64 {
+        self.0.iter().sum()
+    }
+
+    pub fn add(&mut self, other: &StageTimings) {
+        for (mine, theirs) in self.0.iter_mut().zip(other.0) {
+            *mine += theirs;
+        }
+    }
+
+    /// Every value multiplied by `factor` (seconds to mean milliseconds per step, say).
+    pub fn scaled(&self, factor: f64) -> StageTimings {
+        StageTimings(self.0.map(|v| v * factor))
+    }
+
+    /// (stage, seconds) in stage order, for tables and plots.
+    pub fn iter(&self) -> impl Iterator<Item = (Stage, f64)> + '_ {
+        Stage::ALL.iter().map(|&s| (s, self.get(s)))
+    }
+}
+
+impl Serialize for StageTimings {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let mut map = serializer.serialize_map(Some(Stage::COUNT))?;
+        for (stage, seconds) in self.iter() {
+            map.serialize_entry(stage.name(), &seconds)?;
+        }
+        map.end()
+    }
+}
+
+/// Times the stages of a step: exactly one stage runs at a time, and [`Stopwatch::enter`] charges
+/// the time since the last switch to the stage that was running (as Rapier's counters start,
+/// pause and resume), so nested work is never counted twice.
+#[derive(Debug)]
+pub struct Stopwatch {
+    timings: StageTimings,
+    running: Option<(Stage, Instant)>,
+}
+
+impl Stopwatch {
+    pub fn new() -> Self {
+        Self {
+            timings: StageTimings::default(),
+            running: None,
+        }
+    }
+
+    /// Starts timing `stage` and returns the stage that was running before (to resume it).
+    pub fn enter(&mut self, stage: Stage) -> Option<Stage> {
+        let now = Instant::now();
+        let previous = self.charge(now);
+        self.running = Some((stage, now));
+        previous
+    }
+
+    /// Resumes the stage [`Stopwatch::enter`] returned (or stops when there was none).
+    pub fn resume(&mut self, previous: Option<Stage>) {
+        match previous {
+            Some(stage) => {
+                self.enter(stage);
+            }
+            None => self.stop(),
+        }
+    }
+
+    /// Stops timing.
+    pub fn stop(&mut self) {
+        self.charge(Instant::now());
+        self.running = None;
+    }
+
+    /// The timings so far (the running stage counted up to now).
+    pub fn finish(mut self) -> StageTimings {
+        self.stop();
+        self.timings
+    }
+
+    fn charge(&mut self, now: Instant) -> Option<Stage> {
+        let (stage, since) = self.running?;
+        self.timings
+            .add_to(stage, now.duration_since(since).as_secs_f64());
+        Some(stage)
+    }
+}
+
+impl Default for Stopwatch {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct StepStats {
+    pub timings: StageTimings,
+    /// Body pairs whose bounding boxes were compared.
+    pub pairs_tested: usize,
+    /// Pairs whose boxes overlapped and went to the narrow phase.
+    pub narrow_phase_queries: usize,
+    /// Body-body contacts resolved.
+    pub contacts: usize,
+    /// Body-ground contacts resolved.
+    pub ground_contacts: usize,
+    /// Deepest penetration among the contacts of this step.
+    pub max_penetration: f64,
+    pub constraint_visits: usize,
+    pub constraint_corrections: usize,
+    /// The constraint loop stopped on its budget with constraints still violated.
+    pub budget_hit: bool,
+    /// Bodies frozen this step because their state went non-finite or absurd.
+    pub quarantined: Vec<usize>,
+}
+
+impl StepStats {
+    /// Folds a substep's statistics into the step's.
+    pub fn accumulate(&mut self, other: StepStats) {
+        self.timings.add(&other.timings);
+        self.pairs_tested += other.pairs_tested;
+        self.narrow_phase_queries += other.narrow_phase_queries;
+        self.contacts += other.contacts;
+        self.ground_contacts += other.ground_contacts;
+        self.max_penetration = self.max_penetration.max(other.max_penetration);
+        self.constraint_visits += other.constraint_visits;
+        self.constraint_corrections += other.constraint_corrections;
+        self.budget_hit |= other.budget_hit;
+        self.quarantined.extend(other.quarantined);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nested_stages_are_not_counted_twice() {
+        let mut watch = Stopwatch::new();
+        watch.enter(Stage::ContactResolution);
+        std::thread::sleep(std::time::Duration::from_millis(2));
+        let outer = watch.enter(Stage::NarrowPhase);
+        std::thread::sleep(std::time::Duration::from_millis(2));
+        watch.resume(outer);
+        let t = watch.finish();
+        assert!(t.get(Stage::NarrowPhase) >= 0.002);
+        assert!(t.get(Stage::ContactResolution) >= 0.002);
+        assert!(t.get(Stage::Integrate) == 0.0);
+        let sum = t.get(Stage::NarrowPhase) + t.get(Stage::ContactResolution);
+        assert_eq!(t.total(), sum);
+    }
+
+    #[test]
+    fn stage_names_are_unique() {
+        let mut names: Vec<&str> = Stage::ALL.iter().map(|s| s.name()).collect();
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), Stage::COUNT);
+        for (k, stage) in Stage::ALL.iter().enumerate() {
+            assert_eq!(stage.index(), k);
+        }
+    }
+}

@@ -1,0 +1,196 @@
+//! The world owns bodies, shapes and constraints in flat arrays addressed by index, and advances
+//! them with [`World::step`], which reads as the list of its stages.
+
+use super::aabb::{Aabb, body_aabb};
+use super::body::{RigidBody, may_collide};
+use super::broad_phase::BroadPhase;
+use super::constraint::DistanceConstraint;
+use super::coursework::contact_stage::{
+    Bodies, ContactStage, contact_between, resolve_ground_contacts,
+};
+use super::coursework::schedule::solve_constraints;
+use super::integrate::integrate_bodies;
+use super::narrow_phase::{Contact, ground_contact};
+use super::quarantine::Quarantine;
+use super::settings::Settings;
+use super::shape::Shape;
+use super::stats::{Stage, StepStats, Stopwatch};
+use super::step_context::StepContext;
+use glam::DVec3;
+
+#[derive(Debug, Clone)]
+pub struct World {
+    /// Meshes, each shared by every body that uses it.
+    pub shapes: Vec<Shape>,
+    /// Where each shape came from (file name), for display.
+    pub shape_names: Vec<String>,
+    pub bodies: Vec<RigidBody>,
+    pub constraints: Vec<DistanceConstraint>,
+    pub settings: Settings,
+    /// Simulated seconds so far.
+    pub time: f64,
+    pub step_count: u64,
+    /// Notes from loading (ignored constraints, ...), for the user.
+    pub warnings: Vec<String>,
+    /// `constraints_by_body[b]`: the constraints on body b.
+    constraints_by_body: Vec<Vec<u32>>,
+    broad_phase: BroadPhase,
+    contact_stage: ContactStage,
+    quarantine: Quarantine,
+    initial_bodies: Vec<RigidBody>,
+}
+
+impl World {
+    pub fn new(
+        shapes: Vec<Shape>,
+        shape_names: Vec<String>,
+        bodies: Vec<RigidBody>,
+        constraints: Vec<DistanceConstraint>,
+        settings: Settings,
+    ) -> World {
+        let mut constraints_by_body = vec![Vec::new(); bodies.len()];
+        for (index, c) in constraints.iter().enumerate() {
+            constraints_by_body[c.body1].push(index as u32);
+            constraints_by_body[c.body2].push(index as u32);
+        }
+        World {
+            broad_phase: BroadPhase::new(&bodies, &shapes),
+            quarantine: Quarantine::new(&bodies),
+            contact_stage: ContactStage::default(),
+            initial_bodies: bodies.clone(),
+            shapes,
+            shape_names,
+            bodies,
+            constraints,
+            settings,
+            time: 0.0,
+            step_count: 0,
+            warnings: Vec::new(),
+            constraints_by_body,
+        }
+    }
+
+    /// Back to the state the world was created in (settings are kept).
+    pub fn reset(&mut self) {
+        self.bodies = self.initial_bodies.clone();
+        self.quarantine = Quarantine::new(&self.bodies);
+        self.time = 0.0;
+        self.step_count = 0;
+    }
+
+    /// One time step: with substeps, the stages run `substeps` times with `dt / substeps`.
+    pub fn step(&mut self) -> StepStats {
+        let ctx = StepContext::new(&self.settings);
+        let mut stats = StepStats::default();
+        for _ in 0..ctx.settings.substeps {
+            let sub = self.substep(&ctx);
+            stats.accumulate(sub);
+        }
+        self.time += ctx.settings.time_step;
+        self.step_count += 1;
+        stats
+    }
+
+    /// The coursework's update: integrate, body contacts (broad phase, narrow phase, resolution),
+    /// ground contacts, constraints, then the pose check.
+    fn substep(&mut self, ctx: &StepContext) -> StepStats {
+        let mut stats = StepStats::default();
+        let mut watch = Stopwatch::new();
+        watch.enter(Stage::Integrate);
+        integrate_bodies(&mut self.bodies, &ctx.settings, ctx.dt);
+        let bodies = Bodies {
+            bodies: &mut self.bodies,
+            shapes: &self.shapes,
+        };
+        let broad_phase = &mut self.broad_phase;
+        self.contact_stage
+            .resolve_body_contacts(ctx, bodies, broad_phase, &mut watch, &mut stats);
+        watch.enter(Stage::Ground);
+        let bodies = Bodies {
+            bodies: &mut self.bodies,
+            shapes: &self.shapes,
+        };
+        resolve_ground_contacts(ctx, bodies, self.broad_phase.boxes(), &mut stats);
+        if !self.constraints.is_empty() {
+            watch.enter(Stage::Constraints);
+            let report = solve_constraints(
+                ctx,
+                &self.constraints,
+                &self.constraints_by_body,
+                &mut self.bodies,
+            );
+            stats.constraint_visits = report.visits;
+            stats.constraint_corrections = report.corrections;
+            stats.budget_hit = report.budget_hit;
+        }
+        watch.enter(Stage::PoseCheck);
+        self.quarantine
+            .check(&mut self.bodies, &mut stats.quarantined);
+        stats.timings = watch.finish();
+        stats
+    }
+
+    /// Current world-space vertices of one body (the coursework's `currV`), computed on demand.
+    pub fn current_vertices(&self, index: usize) -> Vec<DVec3> {
+        let body = &self.bodies[index];
+        self.shapes[body.shape]
+            .rest_vertices
+            .iter()
+            .map(|&v| body.world_point(v))
+            .collect()
+    }
+
+    /// Kinetic plus potential energy of the movable bodies.
+    pub fn total_energy(&self) -> f64 {
+        let g = self.settings.gravity;
+        self.bodies.iter().map(|b| b.energy(g)).sum()
+    }
+
+    /// Largest distance by which any constraint lies outside its bound.
+    pub fn max_constraint_violation(&self) -> f64 {
+        self.constraints
+            .iter()
+            .map(|c| c.violation(&self.bodies))
+            .fold(0.0, f64::max)
+    }
+
+    pub fn all_finite(&self) -> bool {
+        self.bodies.iter().all(|b| b.is_finite())
+    }
+
+    /// Contacts at the current poses, for display: (body1, body2 or None for the ground, contact).
+    /// Detection only, through a broad phase of its own; nothing is resolved.
+    pub fn current_contacts(&self) -> Vec<(usize, Option<usize>, Contact)> {
+        let (bodies, shapes) = (&self.bodies, &self.shapes);
+        let mut broad = self.broad_phase.clone();
+        broad.update_boxes(bodies, shapes);
+        let keep = |i: usize, j: usize| may_collide(&bodies[i], &bodies[j]);
+        let mut queue = broad.candidate_pairs(bodies, shapes, keep, &mut 0);
+        let patches = self.settings.contact_patches;
+        let mut out = Vec::new();
+        while let Some(((i, j), _)) = queue.pop() {
+            if broad.overlap(i, j)
+                && let Some(c) = contact_between(bodies, shapes, i, j, patches)
+            {
+                out.push((i, Some(j), c));
+            }
+        }
+        for (i, body) in bodies.iter().enumerate() {
+            if body.is_dynamic()
+                && broad.boxes()[i].min.y <= 0.0
+                && let Some(c) = ground_contact(body, &shapes[body.shape], patches)
+            {
+                out.push((i, None, c));
+            }
+        }
+        out
+    }
+
+    /// World boxes of all bodies (computed from poses).
+    pub fn body_aabbs(&self) -> Vec<Aabb> {
+        self.bodies
+            .iter()
+            .map(|b| body_aabb(b, &self.shapes[b.shape]))
+            .collect()
+    }
+}
