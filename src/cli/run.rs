@@ -54,7 +54,7 @@ pub struct RunSummary {
 pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let settings = args.settings.settings()?;
     let mut world = args.scene.load(settings.clone())?;
-    let energy_start = world.total_energy();
+    let mut summary = RunSummary::start(&args.scene.scene, args.steps, &world, settings);
     // Rows stream into a temporary file, renamed into place when the run ends (also on Ctrl-C).
     let mut trajectory = args
         .trajectory
@@ -65,78 +65,11 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         trajectory::write_header(out.writer())?;
         trajectory::write_rows(out.writer(), &world)?;
     }
-    let bar = progress_bar(args.steps, "simulating");
-    let mut summary = RunSummary {
-        scene: args.scene.scene.clone(),
-        steps: args.steps,
-        sim_time: 0.0,
-        wall_s: 0.0,
-        steps_per_s: 0.0,
-        bodies: world.bodies.len(),
-        constraints: world.constraints.len(),
-        contacts: 0,
-        narrow_phase_queries: 0,
-        ground_contacts: 0,
-        constraint_visits: 0,
-        budget_hits: 0,
-        energy_start,
-        energy_end: energy_start,
-        max_penetration: 0.0,
-        max_constraint_violation: world.max_constraint_violation(),
-        finite: world.all_finite(),
-        quarantined: Vec::new(),
-        stage_ms: StageTimings::default(),
-        settings,
-    };
     super::interrupt::install();
-    let mut completed = 0;
     let start = Instant::now();
-    for k in 0..args.steps {
-        if super::interrupt::interrupted() {
-            break;
-        }
-        let stats = world.step();
-        summary.contacts += stats.contacts;
-        summary.narrow_phase_queries += stats.narrow_phase_queries;
-        summary.ground_contacts += stats.ground_contacts;
-        summary.constraint_visits += stats.constraint_visits;
-        summary.budget_hits += stats.budget_hit as u64;
-        summary.max_penetration = summary.max_penetration.max(stats.max_penetration);
-        summary.stage_ms.add(&stats.timings);
-        for b in stats.quarantined {
-            eprintln!(
-                "warning: body {b} went non-finite at step {} and was frozen",
-                world.step_count
-            );
-            summary.quarantined.push(b);
-        }
-        if !world.constraints.is_empty() {
-            summary.max_constraint_violation = summary
-                .max_constraint_violation
-                .max(world.max_constraint_violation());
-        }
-        if let Some(out) = &mut trajectory {
-            trajectory::write_rows(out.writer(), &world)?;
-        }
-        if k % 64 == 0 {
-            bar.set_position(k);
-        }
-        completed = k + 1;
-    }
-    bar.finish_and_clear();
-    summary.wall_s = start.elapsed().as_secs_f64();
-    summary.sim_time = world.time;
-    summary.steps_per_s = if summary.wall_s > 0.0 {
-        completed as f64 / summary.wall_s
-    } else {
-        f64::INFINITY
-    };
-    summary.energy_end = world.total_energy();
-    summary.finite = world.all_finite() && summary.quarantined.is_empty();
-    summary.stage_ms = summary.stage_ms.scaled(1000.0 / completed.max(1) as f64);
-
+    let completed = simulate(args.steps, &mut world, &mut summary, trajectory.as_mut())?;
+    summary.finish(&world, completed, start.elapsed().as_secs_f64());
     let interrupted = completed < args.steps;
-    summary.steps = completed;
     if let Some(out) = trajectory {
         out.commit()?;
     }
@@ -161,6 +94,98 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         std::process::exit(130);
     }
     Ok(())
+}
+
+/// Steps until `steps` are done or Ctrl-C; returns the number of steps completed.
+fn simulate(
+    steps: u64,
+    world: &mut tumble::World,
+    summary: &mut RunSummary,
+    mut trajectory: Option<&mut tumble::io::AtomicFile>,
+) -> anyhow::Result<u64> {
+    let bar = progress_bar(steps, "simulating");
+    let mut completed = 0;
+    for k in 0..steps {
+        if super::interrupt::interrupted() {
+            break;
+        }
+        let stats = world.step();
+        for &b in &stats.quarantined {
+            eprintln!(
+                "warning: body {b} went non-finite at step {} and was frozen",
+                world.step_count
+            );
+        }
+        summary.add_step(world, stats);
+        if let Some(out) = trajectory.as_deref_mut() {
+            trajectory::write_rows(out.writer(), world)?;
+        }
+        if k % 64 == 0 {
+            bar.set_position(k);
+        }
+        completed = k + 1;
+    }
+    bar.finish_and_clear();
+    Ok(completed)
+}
+
+impl RunSummary {
+    fn start(scene: &str, steps: u64, world: &tumble::World, settings: tumble::Settings) -> Self {
+        let energy_start = world.total_energy();
+        RunSummary {
+            scene: scene.to_string(),
+            steps,
+            sim_time: 0.0,
+            wall_s: 0.0,
+            steps_per_s: 0.0,
+            bodies: world.bodies.len(),
+            constraints: world.constraints.len(),
+            contacts: 0,
+            narrow_phase_queries: 0,
+            ground_contacts: 0,
+            constraint_visits: 0,
+            budget_hits: 0,
+            energy_start,
+            energy_end: energy_start,
+            max_penetration: 0.0,
+            max_constraint_violation: world.max_constraint_violation(),
+            finite: world.all_finite(),
+            quarantined: Vec::new(),
+            stage_ms: StageTimings::default(),
+            settings,
+        }
+    }
+
+    fn add_step(&mut self, world: &tumble::World, stats: tumble::StepStats) {
+        self.contacts += stats.contacts;
+        self.narrow_phase_queries += stats.narrow_phase_queries;
+        self.ground_contacts += stats.ground_contacts;
+        self.constraint_visits += stats.constraint_visits;
+        self.budget_hits += stats.budget_hit as u64;
+        self.max_penetration = self.max_penetration.max(stats.max_penetration);
+        self.stage_ms.add(&stats.timings);
+        self.quarantined.extend(stats.quarantined);
+        if !world.constraints.is_empty() {
+            self.max_constraint_violation = self
+                .max_constraint_violation
+                .max(world.max_constraint_violation());
+        }
+    }
+
+    /// Totals after `completed` steps in `wall_s` seconds: rates, final energy, ms per step.
+    fn finish(&mut self, world: &tumble::World, completed: u64, wall_s: f64) {
+        self.steps = completed;
+        self.wall_s = wall_s;
+        self.sim_time = world.time;
+        self.steps_per_s = if wall_s > 0.0 {
+            completed as f64 / wall_s
+        } else {
+            f64::INFINITY
+        };
+        self.energy_end = world.total_energy();
+        self.finite = world.all_finite() && self.quarantined.is_empty();
+        self.stage_ms = self.stage_ms.scaled(1000.0 / completed.max(1) as f64);
+    }
 }
 
 fn print_summary(s: &RunSummary) {
