@@ -374,3 +374,110 @@ fn velocity_projection_zeroes_jv_and_keeps_linear_momentum() {
     assert!(jv.abs() < 1e-13, "J.v = {jv}");
     assert_vec_close(momentum([&a, &b]), p, 1e-13, "linear momentum");
 }
+
+#[test]
+fn coursework_rotation_ignores_half_angles_below_qexp_cutoff() {
+    // The skeleton's QExp returns the identity when |w| dt / 2 < 1e-5.
+    let settings = Settings {
+        gravity: DVec3::ZERO,
+        ..Settings::default()
+    };
+    let dt = settings.time_step;
+    for (speed, rotates) in [(1e-4, false), (9.9e-4, false), (1.01e-3, true), (0.1, true)] {
+        let (_, mut b) = ellipsoid_body(DVec3::ZERO);
+        let q0 = b.orientation;
+        b.angular_velocity = speed * DVec3::new(0.6, 0.0, 0.8);
+        integrate_body(&mut b, &settings, dt);
+        assert_eq!(b.orientation != q0, rotates, "|w| = {speed}");
+        if rotates {
+            let w = b.angular_velocity;
+            let expected = DQuat::from_axis_angle(w.normalize(), w.length() * dt) * q0;
+            assert!(b.orientation.dot(expected).abs() > 1.0 - 1e-14);
+        }
+    }
+    // The opt-in integrators keep exact rotations at any speed.
+    let mut b = ellipsoid_body(DVec3::ZERO).1;
+    let q0 = b.orientation;
+    b.angular_velocity = DVec3::new(1e-4, 0.0, 0.0);
+    let exact = Settings {
+        rotation_integrator: tumble::sim::settings::RotationIntegrator::Gyroscopic,
+        ..settings
+    };
+    integrate_body(&mut b, &exact, dt);
+    assert_ne!(b.orientation, q0);
+}
+
+#[test]
+fn restitution_threshold_applies_only_to_approaching_contacts() {
+    let threshold = ContactParams {
+        restitution: 0.5,
+        skip_separating: false,
+        restitution_threshold: 1.0,
+    };
+    // Body 1 (below) and body 2 (above) touching; the normal points from 1 to 2 (up).
+    let s = shape(&assets::cuboid(DVec3::ONE));
+    let make = |v2: f64| {
+        let a = RigidBody::on_shape(&s, 0, 1.0, true, DVec3::ZERO, DQuat::IDENTITY);
+        let mut b = RigidBody::on_shape(
+            &s,
+            0,
+            1.0,
+            false,
+            DVec3::new(0.0, 2.0, 0.0),
+            DQuat::IDENTITY,
+        );
+        b.linear_velocity = DVec3::new(0.0, v2, 0.0);
+        (a, b)
+    };
+    let contact = Contact {
+        depth: 0.0,
+        normal: DVec3::Y,
+        point2: DVec3::new(0.0, 1.0, 0.0),
+    };
+    // Approaching slowly (0.5 < threshold): no bounce.
+    let (mut a, mut b) = make(-0.5);
+    resolve_contact(&mut a, &mut b, &contact, &threshold);
+    assert!(b.linear_velocity.y.abs() < 1e-15, "{}", b.linear_velocity.y);
+    // Approaching fast: bounces with e = 0.5.
+    let (mut a, mut b) = make(-4.0);
+    resolve_contact(&mut a, &mut b, &contact, &threshold);
+    assert!((b.linear_velocity.y - 2.0).abs() < 1e-12);
+    // Separating slowly: the coursework's impulse with e kept (u.n -> -e u.n), not e = 0, which
+    // would stop the separation and glue the bodies together.
+    let (mut a, mut b) = make(0.5);
+    resolve_contact(&mut a, &mut b, &contact, &threshold);
+    assert!(
+        (b.linear_velocity.y + 0.25).abs() < 1e-12,
+        "{}",
+        b.linear_velocity.y
+    );
+}
+
+#[test]
+fn coursework_two_chain_at_defaults_spends_the_skeletons_budget() {
+    let Some(dir) = coursework_dir() else { return };
+    let mut world = tumble::scene::load_file(
+        &dir.join("two_chain-scene.txt"),
+        &tumble::ConstraintsChoice::Auto,
+        Settings::default(),
+    )
+    .unwrap();
+    // The skeleton: while (zeroStreak < M && currIteration * M < maxIterations).
+    let m = world.constraints.len();
+    assert_eq!(m, 32, "16 records, a lower and an upper inequality each");
+    let budget = 10_000usize.div_ceil(m);
+    assert_eq!(budget, 313);
+    let (mut hits, mut most) = (0, 0);
+    for _ in 0..500 {
+        let stats = world.step();
+        assert!(stats.constraint_visits <= budget);
+        most = most.max(stats.constraint_visits);
+        hits += stats.budget_hit as usize;
+        if stats.budget_hit {
+            assert_eq!(stats.constraint_visits, budget);
+            assert!(world.max_constraint_violation() > 0.0);
+        }
+    }
+    assert_eq!(most, budget);
+    assert!(hits > 0, "the chains never ran out of budget");
+}

@@ -155,3 +155,66 @@ fn shipped_meshes_match_surface_integral() {
         }
     }
 }
+
+/// Each tetrahedron of `mesh` with two corners swapped where `flip(k)`: the same solid, wound
+/// the other way (as tet meshers that use the opposite convention write it).
+fn flipped(mesh: &tumble::io::TetMesh, flip: impl Fn(usize) -> bool) -> tumble::io::TetMesh {
+    let mut m = mesh.clone();
+    for (k, t) in m.tetrahedra.iter_mut().enumerate() {
+        if flip(k) {
+            t.swap(1, 2);
+        }
+    }
+    // Boundary triangles are rebuilt from the tetrahedra.
+    m.triangles.clear();
+    m
+}
+
+#[test]
+fn tetrahedron_orientation_does_not_change_mass_properties() {
+    let Some(dir) = coursework_dir() else { return };
+    let mut meshes: Vec<(String, tumble::io::TetMesh)> = Vec::new();
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        let text = || std::fs::read_to_string(&path).unwrap();
+        let mesh = match path.extension().and_then(|e| e.to_str()) {
+            Some("mesh") => parse_medit(&path, &text()).unwrap(),
+            Some("off") => tumble::io::parse_off(&path, &text()).unwrap(),
+            _ => continue,
+        };
+        meshes.push((path.display().to_string(), mesh));
+    }
+    assert!(
+        meshes.len() >= 6,
+        "coursework meshes not found in {}",
+        dir.display()
+    );
+    for (name, mesh) in &meshes {
+        let reference = shape(mesh);
+        for (how, flip) in [
+            ("all flipped", &(|_| true) as &dyn Fn(usize) -> bool),
+            ("half flipped", &|k| k % 2 == 1),
+        ] {
+            let s = shape(&flipped(mesh, flip));
+            let what = format!("{name}, {how}");
+            assert_close(s.volume, reference.volume, 1e-12, &what);
+            for k in 0..3 {
+                for l in 0..3 {
+                    assert_close(
+                        s.unit_inertia.col(k)[l],
+                        reference.unit_inertia.col(k)[l],
+                        1e-12,
+                        &what,
+                    );
+                }
+            }
+            // Same centre of mass: the re-centred vertices coincide.
+            for (a, b) in s.rest_vertices.iter().zip(&reference.rest_vertices) {
+                assert_vec_close(*a, *b, 1e-12, &what);
+            }
+            // And the rebuilt boundary still faces outward (encloses positive volume).
+            let (volume, _, _) = surface_mass_properties(&s.rest_vertices, &s.triangles);
+            assert_close(volume, s.volume, 1e-10, &what);
+        }
+    }
+}

@@ -89,10 +89,11 @@ fn energy_does_not_grow_in_accurate_mode_without_constraints() {
 fn long_chain_with_tight_bounds_stays_bounded_and_reports_its_budget() {
     let settings = Settings {
         constraint_schedule: ConstraintSchedule::Sparse,
-        max_iterations: 20_000,
         ..Settings::default()
     };
     let mut world = generate::chain(1000, settings); // 100 chains of 10
+    // 20,000 visits per step under the skeleton's rule (max_iterations / M visits).
+    world.settings.max_iterations = 20_000 * world.constraints.len();
     let mut hits = 0;
     let mut worst: f64 = 0.0;
     for _ in 0..500 {
@@ -151,7 +152,7 @@ fn long_chain_with_tight_bounds_stays_bounded_and_reports_its_budget() {
             bodies.clone(),
             constraints.clone(),
             Settings {
-                max_iterations: budget,
+                max_iterations: budget * constraints.len(),
                 ..Settings::default()
             },
         );
@@ -358,4 +359,114 @@ fn large_steps_tunnel_and_substeps_catch_it() {
         substepped < 0.0,
         "8 substeps should stop the box at the wall (x = {substepped})"
     );
+}
+
+#[test]
+fn far_away_bodies_neither_hang_nor_panic() {
+    // Grid cells far beyond the i64 range once overflowed `hi - lo` (an almost endless loop over
+    // cells in release). Bodies at 1e15 and 1e300, a box 2e20 wide (more cells than i64 holds), and others
+    // near the origin, for both broad phases.
+    for broad_phase in [
+        tumble::sim::settings::BroadPhase::Grid,
+        tumble::sim::settings::BroadPhase::AllPairs,
+    ] {
+        let settings = Settings {
+            broad_phase,
+            ..Settings::default()
+        };
+        let s = tumble::Shape::from_tet_mesh(&assets::cuboid(DVec3::ONE)).unwrap();
+        let wide = tumble::Shape::from_tet_mesh(&assets::cuboid(DVec3::splat(1e20))).unwrap();
+        let at = |shape: &tumble::Shape, index, p| {
+            tumble::RigidBody::on_shape(shape, index, 1.0, false, p, DQuat::IDENTITY)
+        };
+        let bodies = vec![
+            at(&s, 0, DVec3::new(1e15, 5.0, -1e15)),
+            at(&s, 0, DVec3::new(1e15 + 0.5, 5.5, -1e15)),
+            at(&s, 0, DVec3::splat(1e300)),
+            at(&s, 0, DVec3::new(-1e300, 1e300, 0.0)),
+            at(&wide, 1, DVec3::new(0.0, 2e20, 0.0)),
+            at(&s, 0, DVec3::new(0.0, 3.0, 0.0)),
+            at(&s, 0, DVec3::new(0.5, 5.5, 0.0)),
+        ];
+        let mut world = World::new(
+            vec![s, wide],
+            vec!["box".into(), "wide".into()],
+            bodies,
+            Vec::new(),
+            settings,
+        );
+        let start = std::time::Instant::now();
+        for _ in 0..50 {
+            world.step();
+        }
+        // Generous: 50 steps of 7 bodies take microseconds; the old grid looped for ages.
+        assert!(
+            start.elapsed().as_secs_f64() < 5.0,
+            "{broad_phase:?} took too long"
+        );
+        for b in &world.bodies {
+            assert!(b.is_finite(), "{broad_phase:?}: {b:?}");
+        }
+    }
+}
+
+#[test]
+fn nan_does_not_reach_a_constrained_partner() {
+    // Two boxes tied by a distance constraint; one gets an infinite velocity. The constraint's
+    // velocity projection must not hand it to the other before the pose check freezes the first.
+    let s = tumble::Shape::from_tet_mesh(&assets::cuboid(DVec3::ONE)).unwrap();
+    let bodies = vec![
+        tumble::RigidBody::on_shape(
+            &s,
+            0,
+            1.0,
+            false,
+            DVec3::new(0.0, 10.0, 0.0),
+            DQuat::IDENTITY,
+        ),
+        tumble::RigidBody::on_shape(
+            &s,
+            0,
+            1.0,
+            false,
+            DVec3::new(3.0, 10.0, 0.0),
+            DQuat::IDENTITY,
+        ),
+    ];
+    let constraints = tumble::sim::constraint::DistanceConstraint::lower_and_upper(
+        &bodies,
+        std::slice::from_ref(&s),
+        (0, 0),
+        (1, 0),
+        1.0,
+        1.0,
+    )
+    .to_vec();
+    for bad in [f64::INFINITY, f64::NAN] {
+        let mut world = World::new(
+            vec![s.clone()],
+            vec!["box".into()],
+            bodies.clone(),
+            constraints.clone(),
+            Settings::default(),
+        );
+        world.bodies[0].linear_velocity = DVec3::new(bad, 0.0, 0.0);
+        let stats = world.step();
+        assert_eq!(stats.quarantined, vec![0], "{bad}");
+        assert!(world.bodies[1].is_finite(), "{bad} reached the partner");
+        // From then on the frozen body is a fixed anchor: the partner hangs from it.
+        let anchor = world.bodies[0].position;
+        for _ in 0..200 {
+            world.step();
+        }
+        assert_eq!(world.bodies[0].position, anchor);
+        assert!(world.all_finite());
+        let c = &world.constraints[0];
+        let (p1, p2) = c.points(&world.bodies);
+        assert!(((p1 - p2).length() - c.rest_length).abs() < 0.01);
+        // Its energy is reported apart from the moving bodies'.
+        let g = world.settings.gravity;
+        assert_eq!(world.frozen_energy(), world.bodies[0].energy(g));
+        assert_eq!(world.total_energy(), world.bodies[1].energy(g));
+    }
 }

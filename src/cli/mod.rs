@@ -20,7 +20,9 @@ pub struct SettingsArgs {
     /// Coefficient of restitution (0 = plastic, 1 = elastic).
     #[arg(long, value_name = "E")]
     pub restitution: Option<f64>,
-    /// Budget of constraint visits per step.
+    /// The coursework's maxIterations: the constraint loop stops once visits x M reach K, M being
+    /// the number of inequality constraints (two per constraint record), so a step makes at most
+    /// ceil(K / M) constraint visits.
     #[arg(long, value_name = "K")]
     pub max_iterations: Option<usize>,
     /// Constraint tolerance.

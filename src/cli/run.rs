@@ -37,11 +37,16 @@ pub struct RunSummary {
     pub contacts: usize,
     /// Pairs handed to the narrow phase (boxes overlapping).
     pub narrow_phase_queries: usize,
+    /// Contacts the separating-axis fallback computed because parry's GJK/EPA failed.
+    pub narrow_phase_fallbacks: usize,
     pub ground_contacts: usize,
     pub constraint_visits: usize,
     pub budget_hits: u64,
     pub energy_start: f64,
+    /// Energy of the bodies still moving at the end.
     pub energy_end: f64,
+    /// Energy of the bodies frozen because their state blew up (at their last finite pose).
+    pub energy_frozen: f64,
     pub max_penetration: f64,
     pub max_constraint_violation: f64,
     pub finite: bool,
@@ -142,11 +147,13 @@ impl RunSummary {
             constraints: world.constraints.len(),
             contacts: 0,
             narrow_phase_queries: 0,
+            narrow_phase_fallbacks: 0,
             ground_contacts: 0,
             constraint_visits: 0,
             budget_hits: 0,
             energy_start,
             energy_end: energy_start,
+            energy_frozen: 0.0,
             max_penetration: 0.0,
             max_constraint_violation: world.max_constraint_violation(),
             finite: world.all_finite(),
@@ -159,6 +166,7 @@ impl RunSummary {
     fn add_step(&mut self, world: &tumble::World, stats: tumble::StepStats) {
         self.contacts += stats.contacts;
         self.narrow_phase_queries += stats.narrow_phase_queries;
+        self.narrow_phase_fallbacks += stats.narrow_phase_fallbacks;
         self.ground_contacts += stats.ground_contacts;
         self.constraint_visits += stats.constraint_visits;
         self.budget_hits += stats.budget_hit as u64;
@@ -183,6 +191,7 @@ impl RunSummary {
             f64::INFINITY
         };
         self.energy_end = world.total_energy();
+        self.energy_frozen = world.frozen_energy();
         self.finite = world.all_finite() && self.quarantined.is_empty();
         self.stage_ms = self.stage_ms.scaled(1000.0 / completed.max(1) as f64);
     }

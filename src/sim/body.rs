@@ -23,8 +23,9 @@ pub struct RigidBody {
     pub inertia: DMat3,
     /// Inverse inertia tensor, body frame (the coursework's `invIT`).
     pub inverse_inertia: DMat3,
-    /// Set when the body's state went non-finite or absurd: it is frozen at its last good state
-    /// and ignored by contacts and constraints.
+    /// Set when the body's state went non-finite or absurd. From then on it is a fixed body at
+    /// its last finite pose: it never moves, other bodies' contacts ignore it (it may sit inside
+    /// them), and its distance constraints hold their other body to it as to a fixed anchor.
     pub quarantined: bool,
 }
 

@@ -59,18 +59,25 @@ impl Grid {
         self.cell_size
     }
 
+    /// The cells a box spans (min and max corner), or None for an oversized box. The span is
+    /// judged in floating point and the corners clamped to +-2^52 cells before conversion, so a
+    /// body at 1e300 neither overflows `hi - lo` nor loops over billions of cells.
     fn range(&self, aabb: &Aabb) -> Option<([i64; 3], [i64; 3])> {
+        const LIMIT: f64 = (1u64 << 52) as f64;
         let inv = 1.0 / self.cell_size;
         let lo = (aabb.min * inv).floor();
         let hi = (aabb.max * inv).floor();
         if !lo.is_finite() || !hi.is_finite() {
             return None;
         }
-        let lo = [lo.x as i64, lo.y as i64, lo.z as i64];
-        let hi = [hi.x as i64, hi.y as i64, hi.z as i64];
-        (0..3)
-            .all(|k| hi[k] - lo[k] < MAX_CELLS_PER_AXIS)
-            .then_some((lo, hi))
+        if (hi - lo).max_element() >= MAX_CELLS_PER_AXIS as f64 {
+            return None;
+        }
+        let cell = |v: f64| v.clamp(-LIMIT, LIMIT) as i64;
+        Some((
+            [cell(lo.x), cell(lo.y), cell(lo.z)],
+            [cell(hi.x), cell(hi.y), cell(hi.z)],
+        ))
     }
 
     fn key(x: i64, y: i64, z: i64) -> u64 {

@@ -19,8 +19,13 @@ pub fn integrate_body(body: &mut RigidBody, settings: &Settings, dt: f64) {
     body.linear_velocity += dt * settings.gravity;
     body.position += dt * body.linear_velocity;
     match settings.rotation_integrator {
-        RotationIntegrator::Coursework => {}
-        RotationIntegrator::Gyroscopic => body.angular_velocity = gyroscopic_step(body, dt),
+        RotationIntegrator::Coursework => {
+            body.orientation = coursework_rotate_by(body.orientation, body.angular_velocity, dt);
+        }
+        RotationIntegrator::Gyroscopic => {
+            body.angular_velocity = gyroscopic_step(body, dt);
+            body.orientation = rotate_by(body.orientation, body.angular_velocity, dt);
+        }
         RotationIntegrator::AngularMomentum => {
             // Torque-free: world angular momentum L is constant over the step. Rotate by the
             // angular velocity at the half-step orientation (explicit midpoint, second order),
@@ -30,10 +35,20 @@ pub fn integrate_body(body: &mut RigidBody, settings: &Settings, dt: f64) {
             let w_half = inverse_inertia_at(body, half) * momentum;
             body.orientation = rotate_by(body.orientation, w_half, dt);
             body.angular_velocity = inverse_inertia_at(body, body.orientation) * momentum;
-            return;
         }
     }
-    body.orientation = rotate_by(body.orientation, body.angular_velocity, dt);
+}
+
+/// Half-angles below this are no rotation at all in the coursework's `QExp` (`nv < 10e-6`).
+pub const QEXP_CUTOFF: f64 = 1e-5;
+
+/// [`rotate_by`] as the coursework's skeleton does it: no rotation when the half-angle
+/// `|w| dt / 2` is below [`QEXP_CUTOFF`].
+pub fn coursework_rotate_by(q: DQuat, angular_velocity: DVec3, dt: f64) -> DQuat {
+    if (0.5 * dt * angular_velocity).length() < QEXP_CUTOFF {
+        return q;
+    }
+    rotate_by(q, angular_velocity, dt)
 }
 
 fn inverse_inertia_at(body: &RigidBody, q: DQuat) -> DMat3 {

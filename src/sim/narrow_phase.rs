@@ -58,29 +58,212 @@ pub fn oriented_boxes_overlap(
         .any(|&u| b.iter().any(|&v| separated_along(u.cross(v))))
 }
 
+/// What the narrow phase found for one pair of bodies.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Detection {
+    pub contact: Option<Contact>,
+    /// parry's GJK/EPA failed on intersecting hulls and the separating-axis fallback
+    /// ([`sat_contact`]) computed the contact instead.
+    pub fallback: bool,
+}
+
+impl Detection {
+    pub fn apart() -> Self {
+        Self {
+            contact: None,
+            fallback: false,
+        }
+    }
+}
+
+/// parry's support-map contact (GJK, then EPA inside the Minkowski difference) at prediction 0,
+/// step for step as `parry3d::query::contact` computes it, but telling EPA's failure apart from
+/// "no intersection" (parry reports both as no contact).
+enum HullContact {
+    Touching(parry3d_f64::query::Contact),
+    Apart,
+    EpaFailed,
+}
+
+fn hull_contact(pose1: &Pose, shape1: &Shape, pose2: &Pose, shape2: &Shape) -> HullContact {
+    use parry3d_f64::math::Vector;
+    use parry3d_f64::query::epa::EPA;
+    use parry3d_f64::query::gjk::{self, CsoPoint, GJKResult, VoronoiSimplex};
+    let (g1, g2) = (&shape1.hull, &shape2.hull);
+    let pos12 = pose1.inv_mul(pose2);
+    let dir = pos12.translation.try_normalize().unwrap_or(Vector::X);
+    let mut simplex = VoronoiSimplex::new();
+    simplex.reset(CsoPoint::from_shapes(&pos12, g1, g2, dir));
+    let (point1, point2_1, normal1) =
+        match gjk::closest_points(&pos12, g1, g2, 0.0, true, &mut simplex) {
+            GJKResult::ClosestPoints(p1, p2, n) => (p1, p2, n),
+            GJKResult::Intersection => match EPA::new().closest_points(&pos12, g1, g2, &simplex) {
+                Some(found) => found,
+                None => return HullContact::EpaFailed,
+            },
+            GJKResult::NoIntersection(_) | GJKResult::Proximity(_) => return HullContact::Apart,
+        };
+    let dist = (point2_1 - point1).dot(normal1);
+    let point2 = pos12.inverse_transform_point(point2_1);
+    let normal2 = pos12.rotation.inverse() * -normal1;
+    let mut contact = parry3d_f64::query::Contact::new(point1, point2, normal1, normal2, dist);
+    contact.transform_by_mut(pose1, pose2);
+    HullContact::Touching(contact)
+}
+
 /// Contact between the hulls of two bodies at their current poses, if they touch or overlap.
 /// parry's `normal1` points from shape 1 to shape 2, `-dist` is the depth and `point2` lies on
-/// shape 2: exactly the coursework's `contactNormal`, `depth` and `penPosition`.
+/// shape 2: exactly the coursework's `contactNormal`, `depth` and `penPosition`. When EPA fails
+/// (it does on faces resting flush, the tower's case) the contact comes from [`sat_contact`].
 pub fn body_contact(
     body1: &RigidBody,
     shape1: &Shape,
     body2: &RigidBody,
     shape2: &Shape,
-) -> Option<Contact> {
+) -> Detection {
     let (pose1, pose2) = (pose(body1), pose(body2));
-    let contact = parry3d_f64::query::contact(&pose1, &shape1.hull, &pose2, &shape2.hull, 0.0)
-        .ok()
-        .flatten()?;
+    let contact = match hull_contact(&pose1, shape1, &pose2, shape2) {
+        HullContact::Touching(c) => c,
+        HullContact::Apart => return Detection::apart(),
+        HullContact::EpaFailed => return sat_fallback(body1, shape1, body2, shape2),
+    };
     let depth = -contact.dist;
-    if depth.is_nan() || depth < 0.0 || !contact.normal1.is_finite() || !contact.point2.is_finite()
-    {
-        return None;
+    if depth.is_nan() || !contact.normal1.is_finite() || !contact.point2.is_finite() {
+        return sat_fallback(body1, shape1, body2, shape2);
     }
+    if depth < 0.0 {
+        return Detection::apart();
+    }
+    Detection {
+        contact: Some(Contact {
+            depth,
+            normal: contact.normal1,
+            point2: contact.point2,
+        }),
+        fallback: false,
+    }
+}
+
+fn sat_fallback(body1: &RigidBody, shape1: &Shape, body2: &RigidBody, shape2: &Shape) -> Detection {
+    Detection {
+        contact: sat_contact(body1, shape1, body2, shape2),
+        fallback: true,
+    }
+}
+
+/// Exact contact of two convex hulls by the separating axis theorem: the candidate axes are the
+/// face normals of both hulls and the cross products of their edge directions (Gottschalk et al.
+/// 1996, Ericson 2005 ch. 5.2.1); the axis of least overlap gives the depth and the normal (from
+/// body 1 to body 2). The point on body 2 is its vertex deepest in body 1 when one vertex is;
+/// when body 1 pokes a vertex into a face of body 2, that vertex moved back by the depth; on
+/// faces or edges meeting flat, the middle of the two deepest features. None when an axis
+/// separates the hulls.
+pub fn sat_contact(
+    body1: &RigidBody,
+    shape1: &Shape,
+    body2: &RigidBody,
+    shape2: &Shape,
+) -> Option<Contact> {
+    let world = |body: &RigidBody, shape: &Shape| -> Vec<DVec3> {
+        shape
+            .hull
+            .points()
+            .iter()
+            .map(|&p| body.world_point(p))
+            .collect()
+    };
+    let (points1, points2) = (world(body1, shape1), world(body2, shape2));
+    let mut best: Option<(f64, DVec3)> = None;
+    for axis in sat_axes(body1, shape1, body2, shape2) {
+        let (min1, max1) = extent(&points1, axis);
+        let (min2, max2) = extent(&points2, axis);
+        // Overlap if body 2 is pushed along +axis, or along -axis.
+        let (depth, normal) = if max1 - min2 <= max2 - min1 {
+            (max1 - min2, axis)
+        } else {
+            (max2 - min1, -axis)
+        };
+        // Separated along this axis (or not comparable: a non-finite pose).
+        if depth.is_nan() || depth < 0.0 {
+            return None;
+        }
+        if best.is_none_or(|(d, _)| depth < d) {
+            best = Some((depth, normal));
+        }
+    }
+    let (depth, normal) = best?;
+    let (deepest2, count2) = extreme_feature(&points2, -normal);
+    let (deepest1, count1) = extreme_feature(&points1, normal);
+    let point2 = match (count2, count1) {
+        (1, _) => deepest2,
+        (_, 1) => deepest1 - depth * normal,
+        _ => 0.5 * (deepest1 - depth * normal + deepest2),
+    };
     Some(Contact {
         depth,
-        normal: contact.normal1,
-        point2: contact.point2,
+        normal,
+        point2,
     })
+}
+
+/// Unit candidate axes: face normals of both hulls, then the normalised cross products of each
+/// pair of distinct edge directions (parallel pairs skipped: the face axes cover them).
+fn sat_axes(body1: &RigidBody, shape1: &Shape, body2: &RigidBody, shape2: &Shape) -> Vec<DVec3> {
+    let normals = |body: &RigidBody, shape: &Shape| -> Vec<DVec3> {
+        shape
+            .hull
+            .faces()
+            .iter()
+            .map(|f| body.orientation * f.normal)
+            .collect()
+    };
+    let directions = |body: &RigidBody, shape: &Shape| -> Vec<DVec3> {
+        let mut dirs: Vec<DVec3> = Vec::new();
+        for e in shape.hull.edges() {
+            let d = body.orientation * e.dir;
+            if !dirs.iter().any(|u| u.cross(d).length_squared() < 1e-18) {
+                dirs.push(d);
+            }
+        }
+        dirs
+    };
+    let mut axes = normals(body1, shape1);
+    axes.extend(normals(body2, shape2));
+    let edges2 = directions(body2, shape2);
+    for u in directions(body1, shape1) {
+        for &v in &edges2 {
+            let c = u.cross(v);
+            if c.length_squared() > 1e-18 {
+                axes.push(c.normalize());
+            }
+        }
+    }
+    axes
+}
+
+fn extent(points: &[DVec3], axis: DVec3) -> (f64, f64) {
+    points
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+            let t = p.dot(axis);
+            (lo.min(t), hi.max(t))
+        })
+}
+
+/// The points furthest along `direction` (within a relative 1e-9): their mean and how many.
+fn extreme_feature(points: &[DVec3], direction: DVec3) -> (DVec3, usize) {
+    let (_, top) = extent(points, direction);
+    let scale = points
+        .iter()
+        .map(|p| p.abs().max_element())
+        .fold(1.0, f64::max);
+    let tied: Vec<DVec3> = points
+        .iter()
+        .copied()
+        .filter(|p| p.dot(direction) >= top - 1e-9 * scale)
+        .collect();
+    let mean = tied.iter().copied().sum::<DVec3>() / tied.len().max(1) as f64;
+    (mean, tied.len())
 }
 
 /// Like [`body_contact`], but acting at the centroid of the whole contact patch: parry's contact
@@ -92,36 +275,44 @@ pub fn body_contact_patch(
     shape1: &Shape,
     body2: &RigidBody,
     shape2: &Shape,
-) -> Option<Contact> {
+) -> Detection {
     use parry3d_f64::query::{ContactManifold, DefaultQueryDispatcher, PersistentQueryDispatcher};
-    let pose12 = pose(body1).inv_mul(&pose(body2));
+    let (pose1, pose2) = (pose(body1), pose(body2));
+    let pose12 = pose1.inv_mul(&pose2);
     let mut manifolds: Vec<ContactManifold<(), ()>> = Vec::new();
-    DefaultQueryDispatcher
-        .contact_manifolds(
-            &pose12,
-            &shape1.hull,
-            &shape2.hull,
-            0.0,
-            &mut manifolds,
-            &mut None,
-        )
-        .ok()?;
-    let manifold = manifolds.first()?;
+    let found = DefaultQueryDispatcher.contact_manifolds(
+        &pose12,
+        &shape1.hull,
+        &shape2.hull,
+        0.0,
+        &mut manifolds,
+        &mut None,
+    );
     let (mut depth, mut sum, mut count) = (0.0f64, DVec3::ZERO, 0);
-    for point in manifold.points.iter().filter(|p| p.dist <= 0.0) {
-        depth = depth.max(-point.dist);
-        sum += body2.world_point(point.local_p2);
-        count += 1;
+    let mut normal = DVec3::NAN;
+    if let (Ok(()), Some(manifold)) = (found, manifolds.first()) {
+        for point in manifold.points.iter().filter(|p| p.dist <= 0.0) {
+            depth = depth.max(-point.dist);
+            sum += body2.world_point(point.local_p2);
+            count += 1;
+        }
+        normal = body1.orientation * manifold.local_n1;
     }
-    let normal = body1.orientation * manifold.local_n1;
     if count == 0 || !normal.is_finite() || !sum.is_finite() {
-        return None;
+        // No patch: apart, unless GJK/EPA failed on intersecting hulls.
+        return match hull_contact(&pose1, shape1, &pose2, shape2) {
+            HullContact::EpaFailed => sat_fallback(body1, shape1, body2, shape2),
+            _ => Detection::apart(),
+        };
     }
-    Some(Contact {
-        depth,
-        normal: normal.normalize(),
-        point2: sum / count as f64,
-    })
+    Detection {
+        contact: Some(Contact {
+            depth,
+            normal: normal.normalize(),
+            point2: sum / count as f64,
+        }),
+        fallback: false,
+    }
 }
 
 /// Contact with the ground plane y = 0, whose body is immovable and plays body 2: depth is minus

@@ -94,7 +94,9 @@ pub struct Settings {
     pub time_step: f64,
     /// Coefficient of restitution `e` (the coursework's CRCoeff).
     pub restitution: f64,
-    /// Budget of constraint visits per step.
+    /// The skeleton's `maxIterations`: the constraint loop stops once `visits * M` reaches it
+    /// (M = number of inequality constraints, two per record), so a step makes at most
+    /// `ceil(max_iterations / M)` constraint visits.
     pub max_iterations: usize,
     /// Constraint tolerance `tau` (length for positions, speed for velocities).
     pub tolerance: f64,

@@ -19,8 +19,6 @@ pub struct TetMesh {
 pub enum ShapeError {
     #[error("the mesh has zero volume (degenerate tetrahedra)")]
     Degenerate,
-    #[error("the mesh has negative volume {0} (its tetrahedra are inverted)")]
-    Inverted(f64),
     #[error("the mesh's vertices are all coplanar or coincident: no convex hull")]
     NoHull,
     #[error("the mesh has non-finite coordinates")]
@@ -41,15 +39,19 @@ pub struct MassProperties {
 /// (the canonical-tetrahedron covariance mapped affinely, see Tonon 2004 or Blow & Binstock,
 /// "How to find the inertia tensor (or other mass properties) of a 3D solid body represented by a
 /// triangle mesh", 2004); the inertia tensor is `trace(C) I - C`.
+///
+/// `V` is each tetrahedron's absolute volume, as in the coursework's skeleton: tet meshers differ
+/// on orientation, and a mesh that mixes both still has the same mass.
 pub fn tet_mass_properties(vertices: &[DVec3], tetrahedra: &[[u32; 4]]) -> MassProperties {
     let corners = |t: &[u32; 4]| t.map(|i| vertices[i as usize]);
     let signed_volume = |[a, b, c, d]: [DVec3; 4]| (b - a).dot((c - a).cross(d - a)) / 6.0;
+    let volume_of = |p: [DVec3; 4]| signed_volume(p).abs();
 
     let mut volume = 0.0;
     let mut moment = DVec3::ZERO;
     for tet in tetrahedra {
         let p = corners(tet);
-        let v = signed_volume(p);
+        let v = volume_of(p);
         volume += v;
         moment += v * (p[0] + p[1] + p[2] + p[3]) / 4.0;
     }
@@ -63,7 +65,7 @@ pub fn tet_mass_properties(vertices: &[DVec3], tetrahedra: &[[u32; 4]]) -> MassP
     let mut covariance = DMat3::ZERO;
     for tet in tetrahedra {
         let p = corners(tet).map(|x| x - center_of_mass);
-        let v = signed_volume(corners(tet));
+        let v = volume_of(corners(tet));
         let s = p[0] + p[1] + p[2] + p[3];
         let mut sum = outer(s, s);
         for x in p {
@@ -126,11 +128,8 @@ impl Shape {
             .map(|v| v.abs().max_element())
             .fold(0.0, f64::max)
             .max(1e-300);
-        if !props.volume.is_finite() || props.volume.abs() <= 1e-12 * scale.powi(3) {
+        if !props.volume.is_finite() || props.volume <= 1e-12 * scale.powi(3) {
             return Err(ShapeError::Degenerate);
-        }
-        if props.volume < 0.0 {
-            return Err(ShapeError::Inverted(props.volume));
         }
         let rest_vertices: Vec<DVec3> = mesh
             .vertices
@@ -138,7 +137,7 @@ impl Shape {
             .map(|v| *v - props.center_of_mass)
             .collect();
         let mut triangles = if mesh.triangles.is_empty() {
-            boundary_triangles(&mesh.tetrahedra)
+            boundary_triangles(&mesh.vertices, &mesh.tetrahedra)
         } else {
             mesh.triangles.clone()
         };
@@ -161,16 +160,22 @@ impl Shape {
     }
 }
 
-/// Faces that belong to exactly one tetrahedron, wound so that the tetrahedron lies behind them.
-fn boundary_triangles(tetrahedra: &[[u32; 4]]) -> Vec<[u32; 3]> {
+/// Faces that belong to exactly one tetrahedron, wound so that the tetrahedron lies behind them
+/// whatever its orientation.
+fn boundary_triangles(vertices: &[DVec3], tetrahedra: &[[u32; 4]]) -> Vec<[u32; 3]> {
     use std::collections::HashMap;
     // For a positively oriented tet (a,b,c,d) these faces point outward.
     const FACES: [[usize; 3]; 4] = [[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]];
     let mut count: HashMap<[u32; 3], (u32, [u32; 3])> = HashMap::new();
     let mut order = Vec::new();
     for tet in tetrahedra {
+        let [a, b, c, d] = tet.map(|i| vertices[i as usize]);
+        let inverted = (b - a).dot((c - a).cross(d - a)) < 0.0;
         for face in FACES {
-            let tri = face.map(|k| tet[k]);
+            let mut tri = face.map(|k| tet[k]);
+            if inverted {
+                tri.swap(1, 2);
+            }
             let mut key = tri;
             key.sort_unstable();
             let entry = count.entry(key).or_insert_with(|| {

@@ -167,6 +167,9 @@ pub struct StepStats {
     pub pairs_tested: usize,
     /// Pairs whose boxes overlapped and went to the narrow phase.
     pub narrow_phase_queries: usize,
+    /// Contacts computed by the separating-axis fallback because parry's GJK/EPA failed on
+    /// intersecting hulls (faces resting flush).
+    pub narrow_phase_fallbacks: usize,
     /// Body-body contacts resolved.
     pub contacts: usize,
     /// Body-ground contacts resolved.
@@ -187,6 +190,7 @@ impl StepStats {
         self.timings.add(&other.timings);
         self.pairs_tested += other.pairs_tested;
         self.narrow_phase_queries += other.narrow_phase_queries;
+        self.narrow_phase_fallbacks += other.narrow_phase_fallbacks;
         self.contacts += other.contacts;
         self.ground_contacts += other.ground_contacts;
         self.max_penetration = self.max_penetration.max(other.max_penetration);

@@ -13,12 +13,15 @@ pub struct StepContext {
     pub contact: ContactParams,
     /// Constraint tolerance `tau`.
     pub tolerance: f64,
-    /// Most constraint visits per substep.
+    /// Most constraint visits per substep: the skeleton's loop runs while
+    /// `currIteration * M < maxIterations`, M being the number of inequality constraints, so
+    /// it makes at most `ceil(max_iterations / M)` visits.
     pub visit_budget: usize,
 }
 
 impl StepContext {
-    pub fn new(settings: &Settings) -> Self {
+    /// The context of a step of a world with `constraint_count` inequality constraints.
+    pub fn new(settings: &Settings, constraint_count: usize) -> Self {
         let settings = settings.sanitized();
         Self {
             dt: settings.time_step / settings.substeps as f64,
@@ -28,7 +31,7 @@ impl StepContext {
                 restitution_threshold: settings.restitution_threshold,
             },
             tolerance: settings.tolerance,
-            visit_budget: settings.max_iterations,
+            visit_budget: settings.max_iterations.div_ceil(constraint_count.max(1)),
             settings,
         }
     }

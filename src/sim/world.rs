@@ -80,7 +80,7 @@ impl World {
 
     /// One time step: with substeps, the stages run `substeps` times with `dt / substeps`.
     pub fn step(&mut self) -> StepStats {
-        let ctx = StepContext::new(&self.settings);
+        let ctx = StepContext::new(&self.settings, self.constraints.len());
         let mut stats = StepStats::default();
         for _ in 0..ctx.settings.substeps {
             let sub = self.substep(&ctx);
@@ -140,10 +140,25 @@ impl World {
             .collect()
     }
 
-    /// Kinetic plus potential energy of the movable bodies.
+    /// Kinetic plus potential energy of the movable bodies (frozen ones apart: see
+    /// [`World::frozen_energy`]).
     pub fn total_energy(&self) -> f64 {
         let g = self.settings.gravity;
-        self.bodies.iter().map(|b| b.energy(g)).sum()
+        self.bodies
+            .iter()
+            .filter(|b| !b.quarantined)
+            .map(|b| b.energy(g))
+            .sum()
+    }
+
+    /// Potential energy of the bodies frozen by the pose check, at their last finite pose.
+    pub fn frozen_energy(&self) -> f64 {
+        let g = self.settings.gravity;
+        self.bodies
+            .iter()
+            .filter(|b| b.quarantined)
+            .map(|b| b.energy(g))
+            .sum()
     }
 
     /// Largest distance by which any constraint lies outside its bound.
@@ -170,7 +185,7 @@ impl World {
         let mut out = Vec::new();
         while let Some(((i, j), _)) = queue.pop() {
             if broad.overlap(i, j)
-                && let Some(c) = contact_between(bodies, shapes, i, j, patches)
+                && let Some(c) = contact_between(bodies, shapes, i, j, patches).contact
             {
                 out.push((i, Some(j), c));
             }

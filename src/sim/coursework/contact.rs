@@ -41,10 +41,14 @@ pub fn resolve_contact(
     let inverse_inertia2 = body2.effective_world_inverse_inertia();
     let closing = body1.point_velocity(arm1) - body2.point_velocity(arm2);
     let normal_speed = closing.dot(n);
-    if params.skip_separating && normal_speed <= 0.0 {
+    // A non-finite velocity must not reach the other body before the pose check freezes it.
+    if !normal_speed.is_finite() || params.skip_separating && normal_speed <= 0.0 {
         return true;
     }
-    let restitution = if normal_speed.abs() < params.restitution_threshold {
+    // The threshold stops micro-bounces of bodies that approach slowly (`u.n > 0`); a slowly
+    // separating contact keeps `e`, or its impulse would glue the bodies together.
+    let approaching = normal_speed > 0.0;
+    let restitution = if approaching && normal_speed < params.restitution_threshold {
         0.0
     } else {
         params.restitution

@@ -7,7 +7,7 @@ use crate::sim::body::{RigidBody, may_collide};
 use crate::sim::broad_phase::BroadPhase;
 use crate::sim::constraint::pair_mut;
 use crate::sim::narrow_phase::{
-    Contact, body_contact, body_contact_patch, ground_contact, oriented_boxes_overlap,
+    Contact, Detection, body_contact, body_contact_patch, ground_contact, oriented_boxes_overlap,
 };
 use crate::sim::pair_queue::{PairQueue, PairSource};
 use crate::sim::settings::BroadPhase as BroadPhaseKind;
@@ -38,11 +38,11 @@ pub fn contact_between(
     i: usize,
     j: usize,
     patches: bool,
-) -> Option<Contact> {
+) -> Detection {
     let (a, b) = (&bodies[i], &bodies[j]);
     let (shape_a, shape_b) = (&shapes[a.shape], &shapes[b.shape]);
     if !oriented_boxes_overlap(a, shape_a, b, shape_b) {
-        return None;
+        return Detection::apart();
     }
     let detect = if patches {
         body_contact_patch
@@ -150,8 +150,9 @@ fn all_pairs(
             }
             stats.narrow_phase_queries += 1;
             watch.enter(Stage::NarrowPhase);
-            let contact = contact_between(bodies, shapes, i, j, ctx.settings.contact_patches);
-            if let Some(contact) = contact {
+            let detection = contact_between(bodies, shapes, i, j, ctx.settings.contact_patches);
+            stats.narrow_phase_fallbacks += detection.fallback as usize;
+            if let Some(contact) = detection.contact {
                 watch.enter(Stage::ContactResolution);
                 apply_contact(bodies, (i, j), &contact, &ctx.contact, stats);
                 broad.refresh(i, &bodies[i], shapes);
@@ -169,7 +170,7 @@ fn precompute(
     shapes: &[Shape],
     broad: &BroadPhase,
     candidates: &[(u32, u32)],
-) -> Vec<Option<Contact>> {
+) -> Vec<Detection> {
     candidates
         .par_iter()
         .with_min_len(16)
@@ -178,7 +179,7 @@ fn precompute(
             if broad.overlap(i, j) && may_collide(&bodies[i], &bodies[j]) {
                 contact_between(bodies, shapes, i, j, ctx.settings.contact_patches)
             } else {
-                None
+                Detection::apart()
             }
         })
         .collect()
@@ -191,14 +192,14 @@ fn resolve_in_order(
     world: Bodies,
     broad: &mut BroadPhase,
     queue: &mut PairQueue,
-    precomputed: &[Option<Contact>],
+    precomputed: &[Detection],
     watch: &mut Stopwatch,
     stats: &mut StepStats,
 ) {
     let Bodies { bodies, shapes } = world;
     let mut moved = vec![false; bodies.len()];
     while let Some(((i, j), source)) = queue.pop() {
-        let contact = match source {
+        let detection = match source {
             PairSource::Candidate(k) if !precomputed.is_empty() && !moved[i] && !moved[j] => {
                 precomputed[k]
             }
@@ -207,13 +208,16 @@ fn resolve_in_order(
                     continue;
                 }
                 let outer = watch.enter(Stage::NarrowPhase);
-                let c = contact_between(bodies, shapes, i, j, ctx.settings.contact_patches);
+                let d = contact_between(bodies, shapes, i, j, ctx.settings.contact_patches);
                 watch.resume(outer);
                 stats.narrow_phase_queries += 1;
-                c
+                d
             }
         };
-        let Some(contact) = contact else { continue };
+        stats.narrow_phase_fallbacks += detection.fallback as usize;
+        let Some(contact) = detection.contact else {
+            continue;
+        };
         apply_contact(bodies, (i, j), &contact, &ctx.contact, stats);
         for b in [i, j] {
             if bodies[b].is_dynamic() {

@@ -47,7 +47,9 @@ pub fn resolve_velocity(
     let jv = n.dot(body1.linear_velocity) + arm1_n.dot(body1.angular_velocity)
         - n.dot(body2.linear_velocity)
         - arm2_n.dot(body2.angular_velocity);
-    if jv.abs() <= tolerance {
+    // A non-finite Jv (a blown-up body) must not reach the other body before the pose check
+    // freezes the first.
+    if !jv.is_finite() || jv.abs() <= tolerance {
         return false;
     }
     let inverse_mass1 = body1.effective_inverse_mass();
