@@ -11,12 +11,16 @@
 pub mod app;
 pub mod camera;
 pub mod gpu;
+mod overlay;
 pub mod palette;
 pub mod panel;
 pub mod picking;
+mod pipelines;
+mod readback;
 pub mod record;
 pub mod renderer;
 pub mod session;
+mod targets;
 
 pub use app::{ViewOptions, run as run_viewer};
 pub use camera::OrbitCamera;
