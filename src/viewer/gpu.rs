@@ -273,7 +273,7 @@ impl Offscreen {
 
 /// Maps `slice` for reading once the copy into it has been submitted, waits for the GPU, hands
 /// the bytes to `read` and unmaps the buffer again (so it can take the next copy).
-pub fn read_mapped<R>(
+pub(super) fn read_mapped<R>(
     device: &wgpu::Device,
     slice: wgpu::BufferSlice<'_>,
     read: impl FnOnce(&[u8]) -> R,
@@ -298,7 +298,7 @@ pub fn read_mapped<R>(
 }
 
 /// A buffer of at least 16 bytes (wgpu rejects empty bindings), not mapped.
-pub fn buffer(
+pub(super) fn buffer(
     device: &wgpu::Device,
     label: &str,
     size: u64,
@@ -313,7 +313,7 @@ pub fn buffer(
 }
 
 /// A buffer created with its contents.
-pub fn buffer_init(
+pub(super) fn buffer_init(
     device: &wgpu::Device,
     label: &str,
     contents: &[u8],
@@ -330,7 +330,7 @@ pub fn buffer_init(
 /// A buffer rewritten every frame (instances, lines). It is reallocated only when the data
 /// outgrows it, then for the next power of two of the element count, so a growing scene costs
 /// few allocations.
-pub struct StreamingBuffer {
+pub(super) struct StreamingBuffer {
     pub buffer: wgpu::Buffer,
     label: &'static str,
     usage: wgpu::BufferUsages,

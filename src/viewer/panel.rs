@@ -1,4 +1,5 @@
-//! The egui side panel: controls, every simulation setting, live statistics and plots.
+//! The egui side panel: controls, every simulation setting, live statistics and plots; and the
+//! overlay over the 3D view.
 
 use super::renderer::DrawOptions;
 use super::session::Session;
@@ -59,6 +60,46 @@ pub struct FrameInfo<'a> {
     pub draw_calls: usize,
     /// Output path and frames so far while recording.
     pub recording: Option<(&'a str, u64)>,
+}
+
+/// One frame of the UI.
+pub struct UiFrame {
+    pub output: egui::FullOutput,
+    pub actions: Vec<Action>,
+    /// What the panel leaves of the window, in points: the 3D view.
+    pub view: egui::Rect,
+}
+
+/// Runs egui for one frame: the panel on the right, the overlay over the rest, which is the 3D
+/// view.
+pub fn run(
+    ctx: &egui::Context,
+    input: egui::RawInput,
+    session: &mut Session,
+    state: &mut PanelState,
+    info: &FrameInfo,
+) -> UiFrame {
+    let mut actions = Vec::new();
+    let mut view = egui::Rect::NOTHING;
+    let output = ctx.run_ui(input, |ui| {
+        // No fill: the window is cleared to the panel colour before egui draws, which spares
+        // software rasterisers a window-high quad every frame.
+        let frame = egui::Frame::side_top_panel(ui.style()).fill(egui::Color32::TRANSPARENT);
+        egui::Panel::right("controls")
+            .frame(frame)
+            .default_size(360.0)
+            .size_range(260.0..=640.0)
+            .show(ui, |ui| {
+                actions = show(ui, session, state, info);
+            });
+        view = ui.available_rect_before_wrap();
+        overlay(ui.ctx(), view, session, state);
+    });
+    UiFrame {
+        output,
+        actions,
+        view,
+    }
 }
 
 fn stat(ui: &mut egui::Ui, name: &str, value: impl Into<egui::WidgetText>) {

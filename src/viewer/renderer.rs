@@ -6,9 +6,8 @@
 //! lines (constraints, contacts). The vertex shader computes `R(q) v + COM` in f32, the core's
 //! formula, and each shape is one instanced draw.
 //!
-//! Pipelines live in [`super::pipelines`], line geometry in [`super::overlay`], depth and MSAA
-//! attachments in [`super::targets`]; the test-only GPU readback extends [`Renderer`] from
-//! `readback.rs`.
+//! Pipelines live in `pipelines.rs`, line geometry in `overlay.rs`, depth and MSAA attachments
+//! in `targets.rs`; the test-only GPU readback extends [`Renderer`] from `readback.rs`.
 
 use super::camera::{CameraMatrices, OrbitCamera, scene_bounds};
 use super::gpu::{Gpu, Image, NoGpu, Offscreen, StreamingBuffer, buffer_init};
