@@ -1,5 +1,6 @@
-//! Adapter and device creation, and offscreen render targets with CPU readback.
+//! Adapter and device creation, buffer helpers, and offscreen render targets with CPU readback.
 
+use super::targets::DEPTH_FORMAT;
 use std::fmt;
 
 /// An adapter with its device and queue.
@@ -87,7 +88,7 @@ impl Gpu {
             .ok()
             .and_then(|v| v.trim().parse::<u32>().ok())
             .unwrap_or(4);
-        if wanted > 1 && ok(color_format, wanted) && ok(super::renderer::DEPTH_FORMAT, wanted) {
+        if wanted > 1 && ok(color_format, wanted) && ok(DEPTH_FORMAT, wanted) {
             wanted
         } else {
             1
@@ -156,7 +157,7 @@ impl Image {
 
     /// Writes a PNG through a temporary file renamed into place.
     pub fn save_png(&self, path: &std::path::Path) -> anyhow::Result<()> {
-        super::record::write_file_atomically(path, |w| self.write_png(w))
+        crate::io::write_file_atomically(path, |w| self.write_png(w))
     }
 }
 
@@ -244,27 +245,16 @@ impl Offscreen {
 
     /// Maps the readback buffer (after a submitted [`Self::copy_to_buffer`]) and returns RGBA.
     pub fn read(&self, device: &wgpu::Device) -> anyhow::Result<Image> {
-        let slice = self.readback.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| anyhow::anyhow!("GPU readback failed: {e}"))?;
-        rx.recv()?
-            .map_err(|e| anyhow::anyhow!("GPU readback failed: {e}"))?;
-        let mut rgba = Vec::with_capacity(4 * (self.width * self.height) as usize);
-        {
-            let data = slice
-                .get_mapped_range()
-                .map_err(|e| anyhow::anyhow!("GPU readback failed: {e:?}"))?;
+        let row_bytes = 4 * self.width as usize;
+        let mut rgba = read_mapped(device, self.readback.slice(..), |data| {
+            // Rows are padded to the copy alignment in the buffer.
+            let mut rgba = Vec::with_capacity(row_bytes * self.height as usize);
             for row in 0..self.height as usize {
                 let start = row * self.padded_row as usize;
-                rgba.extend_from_slice(&data[start..start + 4 * self.width as usize]);
+                rgba.extend_from_slice(&data[start..start + row_bytes]);
             }
-        }
-        self.readback.unmap();
+            rgba
+        })?;
         if matches!(
             self.format,
             wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb
@@ -278,5 +268,110 @@ impl Offscreen {
             height: self.height,
             rgba,
         })
+    }
+}
+
+/// Maps `slice` for reading once the copy into it has been submitted, waits for the GPU, hands
+/// the bytes to `read` and unmaps the buffer again (so it can take the next copy).
+pub(super) fn read_mapped<R>(
+    device: &wgpu::Device,
+    slice: wgpu::BufferSlice<'_>,
+    read: impl FnOnce(&[u8]) -> R,
+) -> anyhow::Result<R> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| anyhow::anyhow!("GPU readback failed: {e}"))?;
+    rx.recv()?
+        .map_err(|e| anyhow::anyhow!("GPU readback failed: {e}"))?;
+    let result = {
+        let data = slice
+            .get_mapped_range()
+            .map_err(|e| anyhow::anyhow!("GPU readback failed: {e:?}"))?;
+        read(&data)
+    };
+    slice.buffer().unmap();
+    Ok(result)
+}
+
+/// A buffer of at least 16 bytes (wgpu rejects empty bindings), not mapped.
+pub(super) fn buffer(
+    device: &wgpu::Device,
+    label: &str,
+    size: u64,
+    usage: wgpu::BufferUsages,
+) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: size.max(16),
+        usage,
+        mapped_at_creation: false,
+    })
+}
+
+/// A buffer created with its contents.
+pub(super) fn buffer_init(
+    device: &wgpu::Device,
+    label: &str,
+    contents: &[u8],
+    usage: wgpu::BufferUsages,
+) -> wgpu::Buffer {
+    use wgpu::util::DeviceExt;
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents,
+        usage,
+    })
+}
+
+/// A buffer rewritten every frame (instances, lines). It is reallocated only when the data
+/// outgrows it, then for the next power of two of the element count, so a growing scene costs
+/// few allocations.
+pub(super) struct StreamingBuffer {
+    pub buffer: wgpu::Buffer,
+    label: &'static str,
+    usage: wgpu::BufferUsages,
+    /// Elements that fit.
+    capacity: usize,
+}
+
+impl StreamingBuffer {
+    pub fn new(device: &wgpu::Device, label: &'static str, usage: wgpu::BufferUsages) -> Self {
+        StreamingBuffer {
+            buffer: buffer(device, label, 16, usage),
+            label,
+            usage,
+            capacity: 0,
+        }
+    }
+
+    /// Uploads `items` from the start of the buffer, reallocating it first when they do not fit.
+    pub fn write<T: bytemuck::Pod>(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        items: &[T],
+    ) {
+        if items.len() > self.capacity {
+            self.capacity = items.len().next_power_of_two();
+            self.buffer = buffer(
+                device,
+                self.label,
+                (self.capacity * std::mem::size_of::<T>()) as u64,
+                self.usage,
+            );
+        }
+        if !items.is_empty() {
+            queue.write_buffer(&self.buffer, 0, bytemuck::cast_slice(items));
+        }
+    }
+
+    /// Makes the next non-empty write allocate afresh, sized for its data: a new scene does not
+    /// keep the previous one's allocation.
+    pub fn reallocate_on_next_write(&mut self) {
+        self.capacity = 0;
     }
 }

@@ -1,4 +1,5 @@
-//! The egui side panel: controls, every simulation setting, live statistics and plots.
+//! The egui side panel: controls, every simulation setting, live statistics and plots; and the
+//! overlay over the 3D view.
 
 use super::renderer::DrawOptions;
 use super::session::Session;
@@ -61,6 +62,46 @@ pub struct FrameInfo<'a> {
     pub recording: Option<(&'a str, u64)>,
 }
 
+/// One frame of the UI.
+pub struct UiFrame {
+    pub output: egui::FullOutput,
+    pub actions: Vec<Action>,
+    /// What the panel leaves of the window, in points: the 3D view.
+    pub view: egui::Rect,
+}
+
+/// Runs egui for one frame: the panel on the right, the overlay over the rest, which is the 3D
+/// view.
+pub fn run(
+    ctx: &egui::Context,
+    input: egui::RawInput,
+    session: &mut Session,
+    state: &mut PanelState,
+    info: &FrameInfo,
+) -> UiFrame {
+    let mut actions = Vec::new();
+    let mut view = egui::Rect::NOTHING;
+    let output = ctx.run_ui(input, |ui| {
+        // No fill: the window is cleared to the panel colour before egui draws, which spares
+        // software rasterisers a window-high quad every frame.
+        let frame = egui::Frame::side_top_panel(ui.style()).fill(egui::Color32::TRANSPARENT);
+        egui::Panel::right("controls")
+            .frame(frame)
+            .default_size(360.0)
+            .size_range(260.0..=640.0)
+            .show(ui, |ui| {
+                actions = show(ui, session, state, info);
+            });
+        view = ui.available_rect_before_wrap();
+        overlay(ui.ctx(), view, session, state);
+    });
+    UiFrame {
+        output,
+        actions,
+        view,
+    }
+}
+
 fn stat(ui: &mut egui::Ui, name: &str, value: impl Into<egui::WidgetText>) {
     ui.label(name);
     ui.label(value);
@@ -77,59 +118,8 @@ pub fn show(
     let mut actions = Vec::new();
     egui::ScrollArea::vertical().auto_shrink([true, false]).show(ui, |ui| {
         ui.heading("tumble");
-        ui.horizontal(|ui| {
-            let label = if session.playing { "Pause" } else { "Play" };
-            if ui.button(label).on_hover_text("Space").clicked() {
-                actions.push(Action::TogglePlay);
-            }
-            if ui.button("Step").on_hover_text("S").clicked() {
-                actions.push(Action::Step);
-            }
-            if ui.button("Reset").on_hover_text("R").clicked() {
-                actions.push(Action::Reset);
-            }
-            if ui.button("Frame").on_hover_text("F").clicked() {
-                actions.push(Action::FrameScene);
-            }
-            if ui.button("Screenshot").on_hover_text("P: PNG of the window").clicked() {
-                actions.push(Action::Screenshot);
-            }
-        });
-        match info.recording {
-            Some((path, frames)) => {
-                ui.horizontal(|ui| {
-                    if ui.button("Stop recording").clicked() {
-                        actions.push(Action::StopRecording);
-                    }
-                    ui.colored_label(
-                        Color32::from_rgb(255, 90, 90),
-                        format!("REC {path}: {frames} frames"),
-                    );
-                });
-            }
-            None => {
-                ui.horizontal(|ui| {
-                    if ui
-                        .button("Record")
-                        .on_hover_text(
-                            "Record the 3D view: .mp4 (ffmpeg), .gif, or a directory for PNG frames; \
-                             frames are taken every 1/fps of simulated time",
-                        )
-                        .clicked()
-                    {
-                        actions.push(Action::StartRecording);
-                    }
-                    ui.add(
-                        egui::TextEdit::singleline(&mut state.record_path).desired_width(150.0),
-                    );
-                    ui.add(
-                        egui::DragValue::new(&mut state.record_fps)
-                            .range(1.0..=120.0)
-                            .suffix(" fps"),
-                    );
-                });
-            }
-        }
+        playback_controls(ui, session.playing, &mut actions);
+        recording_controls(ui, state, info.recording, &mut actions);
         if let Some(message) = &state.message {
             ui.label(RichText::new(message).small());
         }
@@ -140,12 +130,7 @@ pub fn show(
 
         egui::CollapsingHeader::new("Simulation settings").default_open(true).show(ui, |ui| settings_ui(ui, &mut session.world.settings));
 
-        egui::CollapsingHeader::new("Display").default_open(true).show(ui, |ui| {
-            ui.checkbox(&mut state.draw.grid, "Ground grid");
-            ui.checkbox(&mut state.draw.constraints, "Constraint segments")
-                .on_hover_text("Green within bounds, through yellow to red at 10% of the rest length outside them");
-            ui.checkbox(&mut state.draw.contacts, "Contact points and normals");
-        });
+        egui::CollapsingHeader::new("Display").default_open(true).show(ui, |ui| display_ui(ui, &mut state.draw));
 
         egui::CollapsingHeader::new("Statistics").default_open(true).show(ui, |ui| statistics_ui(ui, session, info));
 
@@ -158,6 +143,80 @@ pub fn show(
         ui.small("Space play/pause · S step · R reset · F frame · P screenshot · Esc deselect");
     });
     actions
+}
+
+/// Play/pause, step, reset, frame and screenshot buttons, with their keys as hover text.
+fn playback_controls(ui: &mut egui::Ui, playing: bool, actions: &mut Vec<Action>) {
+    ui.horizontal(|ui| {
+        let label = if playing { "Pause" } else { "Play" };
+        if ui.button(label).on_hover_text("Space").clicked() {
+            actions.push(Action::TogglePlay);
+        }
+        if ui.button("Step").on_hover_text("S").clicked() {
+            actions.push(Action::Step);
+        }
+        if ui.button("Reset").on_hover_text("R").clicked() {
+            actions.push(Action::Reset);
+        }
+        if ui.button("Frame").on_hover_text("F").clicked() {
+            actions.push(Action::FrameScene);
+        }
+        if ui
+            .button("Screenshot")
+            .on_hover_text("P: PNG of the window")
+            .clicked()
+        {
+            actions.push(Action::Screenshot);
+        }
+    });
+}
+
+/// While recording: a stop button and the frame count; otherwise the record button with the
+/// output path and frame rate.
+fn recording_controls(
+    ui: &mut egui::Ui,
+    state: &mut PanelState,
+    recording: Option<(&str, u64)>,
+    actions: &mut Vec<Action>,
+) {
+    ui.horizontal(|ui| match recording {
+        Some((path, frames)) => {
+            if ui.button("Stop recording").clicked() {
+                actions.push(Action::StopRecording);
+            }
+            ui.colored_label(
+                Color32::from_rgb(255, 90, 90),
+                format!("REC {path}: {frames} frames"),
+            );
+        }
+        None => {
+            if ui
+                .button("Record")
+                .on_hover_text(
+                    "Record the 3D view: .mp4 (ffmpeg), .gif, or a directory for PNG frames; \
+                     frames are taken every 1/fps of simulated time",
+                )
+                .clicked()
+            {
+                actions.push(Action::StartRecording);
+            }
+            ui.add(egui::TextEdit::singleline(&mut state.record_path).desired_width(150.0));
+            ui.add(
+                egui::DragValue::new(&mut state.record_fps)
+                    .range(1.0..=120.0)
+                    .suffix(" fps"),
+            );
+        }
+    });
+}
+
+fn display_ui(ui: &mut egui::Ui, draw: &mut DrawOptions) {
+    ui.checkbox(&mut draw.grid, "Ground grid");
+    ui.checkbox(&mut draw.constraints, "Constraint segments")
+        .on_hover_text(
+            "Green within bounds, through yellow to red at 10% of the rest length outside them",
+        );
+    ui.checkbox(&mut draw.contacts, "Contact points and normals");
 }
 
 fn scene_picker(
@@ -207,30 +266,7 @@ fn scene_picker(
 /// Every field of [`Settings`]. The destructuring has no `..`: a new setting in the core does
 /// not compile until it has a control here.
 fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
-    ui.horizontal(|ui| {
-        if ui
-            .button("Coursework defaults")
-            .on_hover_text("Settings::default(): reproduces the coursework")
-            .clicked()
-        {
-            *settings = Settings {
-                time_step: settings.time_step,
-                ..Settings::default()
-            };
-        }
-        if ui
-            .button("Accurate preset")
-            .on_hover_text(
-                "Settings::accurate(): the best combination found by the accuracy benchmark",
-            )
-            .clicked()
-        {
-            *settings = Settings {
-                time_step: settings.time_step,
-                ..Settings::accurate()
-            };
-        }
-    });
+    preset_buttons(ui, settings);
     let Settings {
         time_step,
         restitution,
@@ -281,6 +317,34 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
     enum_choice(ui, "constraint schedule", constraint_schedule);
 }
 
+/// Buttons that replace every setting but the time step by a preset.
+fn preset_buttons(ui: &mut egui::Ui, settings: &mut Settings) {
+    ui.horizontal(|ui| {
+        if ui
+            .button("Coursework defaults")
+            .on_hover_text("Settings::default(): reproduces the coursework")
+            .clicked()
+        {
+            *settings = Settings {
+                time_step: settings.time_step,
+                ..Settings::default()
+            };
+        }
+        if ui
+            .button("Accurate preset")
+            .on_hover_text(
+                "Settings::accurate(): the best combination found by the accuracy benchmark",
+            )
+            .clicked()
+        {
+            *settings = Settings {
+                time_step: settings.time_step,
+                ..Settings::accurate()
+            };
+        }
+    });
+}
+
 /// A combo box over every value of a settings enum (new values appear by themselves).
 fn enum_choice<T: Choice>(ui: &mut egui::Ui, label: &str, value: &mut T) {
     egui::ComboBox::from_label(label)
@@ -294,105 +358,13 @@ fn enum_choice<T: Choice>(ui: &mut egui::Ui, label: &str, value: &mut T) {
 }
 
 fn statistics_ui(ui: &mut egui::Ui, session: &Session, info: &FrameInfo) {
-    let world = &session.world;
-    let last = &session.last;
     egui::Grid::new("stats")
         .num_columns(2)
         .striped(false)
         .show(ui, |ui| {
-            let fps = if info.frame_interval > 0.0 {
-                1.0 / info.frame_interval
-            } else {
-                0.0
-            };
-            stat(
-                ui,
-                "frame time",
-                format!("{:.1} ms ({fps:.0} fps)", 1e3 * info.frame_interval),
-            );
-            stat(
-                ui,
-                "CPU per frame",
-                format!("{:.1} ms", 1e3 * info.frame_work),
-            );
-            stat(
-                ui,
-                "simulated",
-                format!("{:.3} s, step {}", world.time, world.step_count),
-            );
-            match session.ratio() {
-                Some(r) if session.playing && (r < 0.97 || session.behind) => {
-                    stat(
-                        ui,
-                        "sim / real",
-                        RichText::new(format!("{r:.2}x (cannot keep up)"))
-                            .color(Color32::from_rgb(255, 170, 60)),
-                    );
-                }
-                Some(r) if session.playing => stat(ui, "sim / real", format!("{r:.2}x")),
-                _ => stat(
-                    ui,
-                    "sim / real",
-                    if session.playing { "-" } else { "paused" },
-                ),
-            }
-            stat(ui, "steps this frame", format!("{}", session.frame_steps));
-            let steps = session.frame_steps.max(1) as f64;
-            for (stage, seconds) in session.frame_timings.iter() {
-                stat(
-                    ui,
-                    &format!("  {}", stage.name().replace('_', " ")),
-                    format!("{:.3} ms/step", 1e3 * seconds / steps),
-                );
-            }
-            stat(
-                ui,
-                "  total",
-                format!("{:.3} ms/step", 1e3 * session.frame_timings.total() / steps),
-            );
-            stat(ui, "bodies", format!("{}", world.bodies.len()));
-            stat(
-                ui,
-                "contacts",
-                format!(
-                    "{} body-body, {} ground",
-                    last.contacts, last.ground_contacts
-                ),
-            );
-            stat(
-                ui,
-                "deepest penetration",
-                format!("{:.4}", last.max_penetration),
-            );
-            if !world.constraints.is_empty() {
-                stat(
-                    ui,
-                    "constraint visits",
-                    format!(
-                        "{} ({} corrections)",
-                        last.constraint_visits, last.constraint_corrections
-                    ),
-                );
-                if last.budget_hit {
-                    stat(
-                        ui,
-                        "budget",
-                        RichText::new("ran out (raise max visits)")
-                            .color(Color32::from_rgb(255, 110, 110)),
-                    );
-                } else {
-                    stat(ui, "budget", "enough");
-                }
-            }
-            stat(ui, "total energy", format!("{:.6e}", world.total_energy()));
-            let quarantined = world.bodies.iter().filter(|b| b.quarantined).count();
-            if quarantined > 0 {
-                stat(
-                    ui,
-                    "frozen (non-finite)",
-                    RichText::new(format!("{quarantined}")).color(Color32::from_rgb(255, 110, 110)),
-                );
-            }
+            frame_rows(ui, info);
+            stepping_rows(ui, session);
+            world_rows(ui, session);
             stat(
                 ui,
                 "draw calls",
@@ -400,6 +372,113 @@ fn statistics_ui(ui: &mut egui::Ui, session: &Session, info: &FrameInfo) {
             );
         });
     ui.add(egui::Label::new(RichText::new(format!("GPU: {}", info.adapter)).small()).wrap());
+}
+
+/// Frame interval and rendering work.
+fn frame_rows(ui: &mut egui::Ui, info: &FrameInfo) {
+    let fps = if info.frame_interval > 0.0 {
+        1.0 / info.frame_interval
+    } else {
+        0.0
+    };
+    stat(
+        ui,
+        "frame time",
+        format!("{:.1} ms ({fps:.0} fps)", 1e3 * info.frame_interval),
+    );
+    stat(
+        ui,
+        "CPU per frame",
+        format!("{:.1} ms", 1e3 * info.frame_work),
+    );
+}
+
+/// Simulated time, the pace against real time, and this frame's steps with their stage timings.
+fn stepping_rows(ui: &mut egui::Ui, session: &Session) {
+    let world = &session.world;
+    stat(
+        ui,
+        "simulated",
+        format!("{:.3} s, step {}", world.time, world.step_count),
+    );
+    match session.ratio() {
+        Some(r) if session.playing && (r < 0.97 || session.behind) => {
+            stat(
+                ui,
+                "sim / real",
+                RichText::new(format!("{r:.2}x (cannot keep up)"))
+                    .color(Color32::from_rgb(255, 170, 60)),
+            );
+        }
+        Some(r) if session.playing => stat(ui, "sim / real", format!("{r:.2}x")),
+        _ => stat(
+            ui,
+            "sim / real",
+            if session.playing { "-" } else { "paused" },
+        ),
+    }
+    stat(ui, "steps this frame", format!("{}", session.frame_steps));
+    let steps = session.frame_steps.max(1) as f64;
+    for (stage, seconds) in session.frame_timings.iter() {
+        stat(
+            ui,
+            &format!("  {}", stage.name().replace('_', " ")),
+            format!("{:.3} ms/step", 1e3 * seconds / steps),
+        );
+    }
+    stat(
+        ui,
+        "  total",
+        format!("{:.3} ms/step", 1e3 * session.frame_timings.total() / steps),
+    );
+}
+
+/// Bodies, contacts and constraint work of the last step, energy, and frozen bodies.
+fn world_rows(ui: &mut egui::Ui, session: &Session) {
+    let world = &session.world;
+    let last = &session.last;
+    stat(ui, "bodies", format!("{}", world.bodies.len()));
+    stat(
+        ui,
+        "contacts",
+        format!(
+            "{} body-body, {} ground",
+            last.contacts, last.ground_contacts
+        ),
+    );
+    stat(
+        ui,
+        "deepest penetration",
+        format!("{:.4}", last.max_penetration),
+    );
+    if !world.constraints.is_empty() {
+        stat(
+            ui,
+            "constraint visits",
+            format!(
+                "{} ({} corrections)",
+                last.constraint_visits, last.constraint_corrections
+            ),
+        );
+        if last.budget_hit {
+            stat(
+                ui,
+                "budget",
+                RichText::new("ran out (raise max visits)").color(Color32::from_rgb(255, 110, 110)),
+            );
+        } else {
+            stat(ui, "budget", "enough");
+        }
+    }
+    stat(ui, "total energy", format!("{:.6e}", world.total_energy()));
+    let quarantined = world.bodies.iter().filter(|b| b.quarantined).count();
+    if quarantined > 0 {
+        stat(
+            ui,
+            "frozen (non-finite)",
+            RichText::new(format!("{quarantined}")).color(Color32::from_rgb(255, 110, 110)),
+        );
+    }
 }
 
 fn plots_ui(ui: &mut egui::Ui, session: &Session) {

@@ -63,6 +63,31 @@ struct GifEncoder {
     centiseconds: u64,
 }
 
+impl GifEncoder {
+    /// Writes into `path`'s partial file, renamed into place by [`Encoder::finish`].
+    fn create(path: &Path, width: u32, height: u32, fps: f64) -> anyhow::Result<GifEncoder> {
+        let tmp = partial_path(path);
+        let file = std::fs::File::create(&tmp)
+            .with_context(|| format!("cannot create {}", tmp.display()))?;
+        let mut encoder = gif::Encoder::new(
+            std::io::BufWriter::new(file),
+            width as u16,
+            height as u16,
+            &[],
+        )
+        .with_context(|| format!("cannot write {}", tmp.display()))?;
+        encoder.set_repeat(gif::Repeat::Infinite)?;
+        Ok(GifEncoder {
+            encoder,
+            path: path.to_path_buf(),
+            tmp,
+            fps,
+            frames: 0,
+            centiseconds: 0,
+        })
+    }
+}
+
 impl Encoder for GifEncoder {
     fn frame(&mut self, image: &mut Image) -> anyhow::Result<()> {
         let mut frame = gif::Frame::from_rgba_speed(
@@ -106,6 +131,25 @@ struct PngDirEncoder {
     frames: u64,
 }
 
+impl PngDirEncoder {
+    /// Creates the directory and removes the frames of an earlier recording, which would mix
+    /// with this one's.
+    fn create(path: &Path) -> anyhow::Result<PngDirEncoder> {
+        std::fs::create_dir_all(path)
+            .with_context(|| format!("cannot create directory {}", path.display()))?;
+        for entry in std::fs::read_dir(path)?.flatten() {
+            let name = entry.file_name().to_string_lossy().into_owned();
+            if name.starts_with("frame_") && name.ends_with(".png") {
+                let _ = std::fs::remove_file(entry.path());
+            }
+        }
+        Ok(PngDirEncoder {
+            dir: path.to_path_buf(),
+            frames: 0,
+        })
+    }
+}
+
 impl Encoder for PngDirEncoder {
     fn frame(&mut self, image: &mut Image) -> anyhow::Result<()> {
         let path = self.dir.join(format!("frame_{:06}.png", self.frames));
@@ -123,6 +167,59 @@ struct Mp4Encoder {
     stdin: Option<std::process::ChildStdin>,
     path: PathBuf,
     tmp: PathBuf,
+}
+
+impl Mp4Encoder {
+    /// Starts `ffmpeg` reading raw RGBA frames on its standard input and writing H.264 into
+    /// `path`'s partial file, renamed into place by [`Encoder::finish`].
+    fn spawn(path: &Path, width: u32, height: u32, fps: f64) -> anyhow::Result<Mp4Encoder> {
+        let tmp = partial_path(path);
+        let mut command = std::process::Command::new("ffmpeg");
+        command
+            .args([
+                "-hide_banner",
+                "-loglevel",
+                "error",
+                "-y",
+                "-f",
+                "rawvideo",
+                "-pixel_format",
+                "rgba",
+                "-video_size",
+            ])
+            .arg(format!("{width}x{height}"))
+            .arg("-framerate")
+            .arg(format!("{fps}"))
+            .args([
+                "-i",
+                "-",
+                "-c:v",
+                "libx264",
+                "-preset",
+                "veryfast",
+                "-pix_fmt",
+                "yuv420p",
+                "-movflags",
+                "+faststart",
+                "-f",
+                "mp4",
+            ])
+            .arg(&tmp)
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::null());
+        // Its own process group: Ctrl-C in the terminal reaches tumble only, which then closes
+        // ffmpeg's input so the file is finished properly.
+        #[cfg(unix)]
+        std::os::unix::process::CommandExt::process_group(&mut command, 0);
+        let mut child = command.spawn().context("cannot start ffmpeg")?;
+        let stdin = child.stdin.take();
+        Ok(Mp4Encoder {
+            child,
+            stdin,
+            path: path.to_path_buf(),
+            tmp,
+        })
+    }
 }
 
 impl Encoder for Mp4Encoder {
@@ -218,90 +315,9 @@ impl FrameWriter {
     pub fn create(path: &Path, width: u32, height: u32, fps: f64) -> anyhow::Result<FrameWriter> {
         let kind = Self::check(path, width, height, fps)?;
         let encoder: Box<dyn Encoder> = match kind {
-            OutputKind::Gif => {
-                let tmp = partial_path(path);
-                let file = std::fs::File::create(&tmp)
-                    .with_context(|| format!("cannot create {}", tmp.display()))?;
-                let mut encoder = gif::Encoder::new(
-                    std::io::BufWriter::new(file),
-                    width as u16,
-                    height as u16,
-                    &[],
-                )
-                .with_context(|| format!("cannot write {}", tmp.display()))?;
-                encoder.set_repeat(gif::Repeat::Infinite)?;
-                Box::new(GifEncoder {
-                    encoder,
-                    path: path.to_path_buf(),
-                    tmp,
-                    fps,
-                    frames: 0,
-                    centiseconds: 0,
-                })
-            }
-            OutputKind::PngDir => {
-                std::fs::create_dir_all(path)
-                    .with_context(|| format!("cannot create directory {}", path.display()))?;
-                // Frames of an earlier recording would mix with this one's.
-                for entry in std::fs::read_dir(path)?.flatten() {
-                    let name = entry.file_name().to_string_lossy().into_owned();
-                    if name.starts_with("frame_") && name.ends_with(".png") {
-                        let _ = std::fs::remove_file(entry.path());
-                    }
-                }
-                Box::new(PngDirEncoder {
-                    dir: path.to_path_buf(),
-                    frames: 0,
-                })
-            }
-            OutputKind::Mp4 => {
-                let tmp = partial_path(path);
-                let mut command = std::process::Command::new("ffmpeg");
-                command
-                    .args([
-                        "-hide_banner",
-                        "-loglevel",
-                        "error",
-                        "-y",
-                        "-f",
-                        "rawvideo",
-                        "-pixel_format",
-                        "rgba",
-                        "-video_size",
-                    ])
-                    .arg(format!("{width}x{height}"))
-                    .arg("-framerate")
-                    .arg(format!("{fps}"))
-                    .args([
-                        "-i",
-                        "-",
-                        "-c:v",
-                        "libx264",
-                        "-preset",
-                        "veryfast",
-                        "-pix_fmt",
-                        "yuv420p",
-                        "-movflags",
-                        "+faststart",
-                        "-f",
-                        "mp4",
-                    ])
-                    .arg(&tmp)
-                    .stdin(std::process::Stdio::piped())
-                    .stdout(std::process::Stdio::null());
-                // Its own process group: Ctrl-C in the terminal reaches tumble only, which then
-                // closes ffmpeg's input so the file is finished properly.
-                #[cfg(unix)]
-                std::os::unix::process::CommandExt::process_group(&mut command, 0);
-                let mut child = command.spawn().context("cannot start ffmpeg")?;
-                let stdin = child.stdin.take();
-                Box::new(Mp4Encoder {
-                    child,
-                    stdin,
-                    path: path.to_path_buf(),
-                    tmp,
-                })
-            }
+            OutputKind::Gif => Box::new(GifEncoder::create(path, width, height, fps)?),
+            OutputKind::PngDir => Box::new(PngDirEncoder::create(path)?),
+            OutputKind::Mp4 => Box::new(Mp4Encoder::spawn(path, width, height, fps)?),
         };
         let (sender, receiver) = sync_channel::<Image>(4);
         let thread = std::thread::Builder::new()
@@ -387,6 +403,25 @@ pub struct RecordOptions {
     pub draw: DrawOptions,
 }
 
+impl RecordOptions {
+    /// Rejects settings that cannot make a recording, with simulation time step `dt`.
+    fn check(&self, dt: f64) -> anyhow::Result<()> {
+        anyhow::ensure!(
+            dt.is_finite() && dt > 0.0,
+            "the time step must be positive to record, got {dt}"
+        );
+        anyhow::ensure!(
+            self.seconds.is_finite() && self.seconds >= 0.0,
+            "--seconds must be a non-negative number"
+        );
+        anyhow::ensure!(
+            self.fps.is_finite() && self.fps > 0.0 && self.fps <= 1000.0,
+            "--fps must lie in (0, 1000]"
+        );
+        Ok(())
+    }
+}
+
 #[derive(Debug, Clone)]
 pub struct RecordReport {
     pub frames: u64,
@@ -417,18 +452,7 @@ pub fn record(
 ) -> anyhow::Result<RecordReport> {
     let start = Instant::now();
     let dt = world.settings.time_step;
-    anyhow::ensure!(
-        dt.is_finite() && dt > 0.0,
-        "the time step must be positive to record, got {dt}"
-    );
-    anyhow::ensure!(
-        options.seconds.is_finite() && options.seconds >= 0.0,
-        "--seconds must be a non-negative number"
-    );
-    anyhow::ensure!(
-        options.fps.is_finite() && options.fps > 0.0 && options.fps <= 1000.0,
-        "--fps must lie in (0, 1000]"
-    );
+    options.check(dt)?;
     let frames = ((options.seconds * options.fps).round() as u64).max(1);
     let mut camera = OrbitCamera::default();
     camera.frame(world, options.width as f64 / options.height as f64);

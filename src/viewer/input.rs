@@ -1,0 +1,127 @@
+//! Mouse and keyboard in the 3D view: left drag orbits, right or middle (or shift) drag pans,
+//! the wheel zooms, a left click without drag picks a body; and the keyboard shortcuts. Events
+//! egui takes (over the panel, or typing in a text field) never reach here.
+
+use super::camera::OrbitCamera;
+use super::panel::Action;
+use super::window::ViewRect;
+use winit::event::{MouseButton, MouseScrollDelta};
+use winit::keyboard::{Key, NamedKey};
+
+/// Pixels the cursor may move (in x plus y) before a press counts as a drag, not a click.
+const CLICK_SLOP: f64 = 3.0;
+
+struct Drag {
+    button: MouseButton,
+    start: (f64, f64),
+    last: (f64, f64),
+    moved: bool,
+}
+
+/// The pointer between events.
+#[derive(Default)]
+pub struct Pointer {
+    /// Cursor position in window pixels, while it is in the window.
+    pub cursor: Option<(f64, f64)>,
+    drag: Option<Drag>,
+    /// Shift held: a left drag pans.
+    pub shift: bool,
+}
+
+/// How a button's release ends its drag.
+pub enum Release {
+    /// A left click that did not move: pick at this window position.
+    Pick((f64, f64)),
+    /// The end of an orbit or pan, or a click of another button.
+    EndDrag,
+}
+
+impl Pointer {
+    pub fn dragging(&self) -> bool {
+        self.drag.is_some()
+    }
+
+    /// Whether the cursor is over the 3D view.
+    pub fn over(&self, view: ViewRect) -> bool {
+        self.cursor.is_some_and(|p| view.contains(p))
+    }
+
+    /// The cursor moved to `p`: while dragging, orbits or pans `camera` (a view `view_height`
+    /// pixels high). Returns whether the camera moved.
+    pub fn moved(&mut self, p: (f64, f64), camera: &mut OrbitCamera, view_height: f64) -> bool {
+        self.cursor = Some(p);
+        let Some(drag) = &mut self.drag else {
+            return false;
+        };
+        let (dx, dy) = (p.0 - drag.last.0, p.1 - drag.last.1);
+        drag.last = p;
+        if (p.0 - drag.start.0).abs() + (p.1 - drag.start.1).abs() > CLICK_SLOP {
+            drag.moved = true;
+        }
+        let pan = drag.button != MouseButton::Left || self.shift;
+        if pan {
+            camera.pan(dx, dy, view_height);
+        } else {
+            camera.orbit(dx, dy);
+        }
+        true
+    }
+
+    /// A button went down: starts a drag when the cursor is over the view, egui did not take the
+    /// press (`taken_by_ui`) and no other drag is under way.
+    pub fn pressed(&mut self, button: MouseButton, view: ViewRect, taken_by_ui: bool) {
+        if let Some(p) = self.cursor
+            && !taken_by_ui
+            && view.contains(p)
+            && self.drag.is_none()
+        {
+            self.drag = Some(Drag {
+                button,
+                start: p,
+                last: p,
+                moved: false,
+            });
+        }
+    }
+
+    /// A button went up: ends the drag it started, if any.
+    pub fn released(&mut self, button: MouseButton) -> Option<Release> {
+        let drag = self.drag.take_if(|d| d.button == button)?;
+        Some(if !drag.moved && button == MouseButton::Left {
+            Release::Pick(drag.start)
+        } else {
+            Release::EndDrag
+        })
+    }
+}
+
+/// Zoom steps of a wheel event: lines, or pixels of a touchpad in 40-pixel steps.
+pub fn zoom_steps(delta: MouseScrollDelta) -> f64 {
+    match delta {
+        MouseScrollDelta::LineDelta(_, y) => y as f64,
+        MouseScrollDelta::PixelDelta(p) => p.y / 40.0,
+    }
+}
+
+/// What a key press asks for.
+pub enum Shortcut {
+    Action(Action),
+    /// Esc: drop the selection.
+    Deselect,
+}
+
+/// Space play/pause, S step, R reset, F frame, P screenshot, Esc deselect.
+pub fn shortcut(key: &Key) -> Option<Shortcut> {
+    match key {
+        Key::Named(NamedKey::Space) => Some(Shortcut::Action(Action::TogglePlay)),
+        Key::Named(NamedKey::Escape) => Some(Shortcut::Deselect),
+        Key::Character(c) => match c.to_lowercase().as_str() {
+            "s" => Some(Shortcut::Action(Action::Step)),
+            "r" => Some(Shortcut::Action(Action::Reset)),
+            "f" => Some(Shortcut::Action(Action::FrameScene)),
+            "p" => Some(Shortcut::Action(Action::Screenshot)),
+            _ => None,
+        },
+        _ => None,
+    }
+}

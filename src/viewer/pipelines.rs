@@ -1,0 +1,248 @@
+//! The scene shader's interface and its render pipelines: the uniform block, the vertex formats
+//! (mesh vertices, per-body instances, coloured line vertices) and one pipeline per kind of
+//! geometry, all sharing `scene.wgsl` and the globals bind group.
+
+use super::gpu::buffer;
+use super::targets::DEPTH_FORMAT;
+use bytemuck::{Pod, Zeroable};
+
+const SHADER: &str = include_str!("../../shaders/scene.wgsl");
+
+/// Vertex inputs of `vs_body`: the mesh vertex, and the body's instance at locations 2 to 4.
+const BODY_BUFFERS: [Option<wgpu::VertexBufferLayout<'static>>; 2] = [
+    Some(wgpu::VertexBufferLayout {
+        array_stride: std::mem::size_of::<MeshVertex>() as u64,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
+    }),
+    Some(wgpu::VertexBufferLayout {
+        array_stride: std::mem::size_of::<InstanceData>() as u64,
+        step_mode: wgpu::VertexStepMode::Instance,
+        attributes: &wgpu::vertex_attr_array![2 => Float32x4, 3 => Float32x4, 4 => Float32x4],
+    }),
+];
+
+/// Vertex inputs of `vs_line`.
+const LINE_BUFFERS: [Option<wgpu::VertexBufferLayout<'static>>; 1] =
+    [Some(wgpu::VertexBufferLayout {
+        array_stride: std::mem::size_of::<LineVertex>() as u64,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x4],
+    })];
+
+/// The uniform block (`Globals` in scene.wgsl), written once per frame.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+pub struct Globals {
+    pub view_proj: [[f32; 4]; 4],
+    /// Direction towards the light (x, y, z) and 1 for unlit drawing (w).
+    pub light: [f32; 4],
+    pub eye: [f32; 4],
+}
+
+/// One vertex of a shape's flat-shaded mesh, in body space.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct MeshVertex {
+    pub position: [f32; 3],
+    pub normal: [f32; 3],
+}
+
+/// Per-body data uploaded every frame.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct InstanceData {
+    /// Quaternion (x, y, z, w).
+    pub rotation: [f32; 4],
+    /// Centre of mass (x, y, z, unused).
+    pub com: [f32; 4],
+    /// Linear colour (r, g, b) and highlight (a).
+    pub color: [f32; 4],
+}
+
+/// A vertex of the ground, the grid and the overlay lines, in world space.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct LineVertex {
+    pub position: [f32; 3],
+    pub color: [f32; 4],
+}
+
+/// The shader module, the globals uniform and the pipelines drawn from them.
+pub struct ScenePipelines {
+    /// Kept for the compute entry point of the GPU readback.
+    pub module: wgpu::ShaderModule,
+    pub globals: wgpu::Buffer,
+    pub globals_bind_group: wgpu::BindGroup,
+    /// Instanced, depth-tested, back-face culled triangles.
+    pub bodies: wgpu::RenderPipeline,
+    /// Depth-tested lines: grid, constraint segments, selection outline.
+    pub lines: wgpu::RenderPipeline,
+    /// The ground plane, painted first and writing no depth: everything is drawn over it,
+    /// including the parts of bodies that sink below y = 0.
+    pub ground: wgpu::RenderPipeline,
+    /// Lines over everything: contact markers lie inside the overlapping bodies.
+    pub overlay: wgpu::RenderPipeline,
+}
+
+/// What differs between the scene's pipelines.
+struct PipelineSpec<'a> {
+    label: &'a str,
+    vertex_entry: &'a str,
+    fragment_entry: &'a str,
+    buffers: &'a [Option<wgpu::VertexBufferLayout<'a>>],
+    topology: wgpu::PrimitiveTopology,
+    cull_mode: Option<wgpu::Face>,
+    depth_write: bool,
+    depth_compare: wgpu::CompareFunction,
+}
+
+/// What all the scene's pipelines share.
+struct PipelineBase<'a> {
+    device: &'a wgpu::Device,
+    layout: &'a wgpu::PipelineLayout,
+    module: &'a wgpu::ShaderModule,
+    color_format: wgpu::TextureFormat,
+    sample_count: u32,
+}
+
+impl PipelineBase<'_> {
+    fn build(&self, spec: PipelineSpec<'_>) -> wgpu::RenderPipeline {
+        self.device
+            .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(spec.label),
+                layout: Some(self.layout),
+                vertex: wgpu::VertexState {
+                    module: self.module,
+                    entry_point: Some(spec.vertex_entry),
+                    compilation_options: Default::default(),
+                    buffers: spec.buffers,
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: spec.topology,
+                    cull_mode: spec.cull_mode,
+                    front_face: wgpu::FrontFace::Ccw,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(spec.depth_write),
+                    depth_compare: Some(spec.depth_compare),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: wgpu::MultisampleState {
+                    count: self.sample_count,
+                    ..Default::default()
+                },
+                fragment: Some(wgpu::FragmentState {
+                    module: self.module,
+                    entry_point: Some(spec.fragment_entry),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: self.color_format,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+    }
+}
+
+impl ScenePipelines {
+    /// Everything needed to draw into `color_format` with `sample_count` samples per pixel.
+    pub fn new(
+        device: &wgpu::Device,
+        color_format: wgpu::TextureFormat,
+        sample_count: u32,
+    ) -> ScenePipelines {
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("scene.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+        });
+        let (layout, globals, globals_bind_group) = globals_binding(device);
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("scene"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let base = PipelineBase {
+            device,
+            layout: &pipeline_layout,
+            module: &module,
+            color_format,
+            sample_count,
+        };
+        use wgpu::CompareFunction::{Always, Less, LessEqual};
+        use wgpu::PrimitiveTopology::{LineList, TriangleList};
+        let line_spec = |label, topology, depth_write, depth_compare| PipelineSpec {
+            label,
+            vertex_entry: "vs_line",
+            fragment_entry: "fs_line",
+            buffers: &LINE_BUFFERS,
+            topology,
+            cull_mode: None,
+            depth_write,
+            depth_compare,
+        };
+        let bodies = base.build(PipelineSpec {
+            label: "bodies",
+            vertex_entry: "vs_body",
+            fragment_entry: "fs_body",
+            buffers: &BODY_BUFFERS,
+            topology: TriangleList,
+            cull_mode: Some(wgpu::Face::Back),
+            depth_write: true,
+            depth_compare: Less,
+        });
+        let lines = base.build(line_spec("lines", LineList, true, LessEqual));
+        let overlay = base.build(line_spec("overlay lines", LineList, false, Always));
+        let ground = base.build(line_spec("ground", TriangleList, false, Always));
+        ScenePipelines {
+            module,
+            globals,
+            globals_bind_group,
+            bodies,
+            lines,
+            ground,
+            overlay,
+        }
+    }
+}
+
+/// The globals uniform buffer at binding 0, seen by both shader stages: its layout, the buffer
+/// and the bind group.
+fn globals_binding(
+    device: &wgpu::Device,
+) -> (wgpu::BindGroupLayout, wgpu::Buffer, wgpu::BindGroup) {
+    let globals = buffer(
+        device,
+        "globals",
+        std::mem::size_of::<Globals>() as u64,
+        wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+    );
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("globals"),
+        entries: &[wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        }],
+    });
+    let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("globals"),
+        layout: &layout,
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: globals.as_entire_binding(),
+        }],
+    });
+    (layout, globals, bind_group)
+}

@@ -1,0 +1,106 @@
+//! Recording started from the window's panel. A frame of the 3D view is taken after the step that
+//! reaches each frame's simulated time (one per 1/fps of simulated time), so the video plays at
+//! simulated speed whatever the window's frame rate. The encoding is [`super::record`]'s.
+
+use super::gpu::Image;
+use super::present::{SceneView, prepare_scene};
+use super::record::FrameWriter;
+use super::window::{Gfx, ViewRect};
+use crate::World;
+use std::path::{Path, PathBuf};
+
+pub struct Recording {
+    writer: FrameWriter,
+    fps: f64,
+    /// Simulated time of the next frame to capture.
+    next: f64,
+    /// Frame size (pixels), fixed for the whole recording.
+    width: u32,
+    height: u32,
+}
+
+impl Recording {
+    /// Starts recording the view into `path` from simulated time `time`; the error is the
+    /// message for the panel.
+    pub fn start(path: &Path, view: ViewRect, fps: f64, time: f64) -> Result<Recording, String> {
+        let [_, _, w, h] = view.0.map(|v| v.max(0.0) as u32);
+        // Even sizes suit every format (H.264 needs them).
+        let (width, height) = (w & !1, h & !1);
+        if width < 2 || height < 2 {
+            return Err("the view is too small to record".into());
+        }
+        match FrameWriter::create(path, width, height, fps) {
+            Ok(writer) => Ok(Recording {
+                writer,
+                fps,
+                next: time,
+                width,
+                height,
+            }),
+            Err(e) => Err(format!("cannot record: {e:#}")),
+        }
+    }
+
+    /// Output path (for display) and frames so far.
+    pub fn status(&self) -> (String, u64) {
+        (self.writer.path.display().to_string(), self.writer.frames)
+    }
+
+    /// After a reset of the simulation: the next frame is the one at time 0.
+    pub fn rewind(&mut self) {
+        self.next = 0.0;
+    }
+
+    /// Encodes the queued frames and closes the file; returns its path and the frames written.
+    pub fn finish(self) -> anyhow::Result<(PathBuf, u64)> {
+        let path = self.writer.path.clone();
+        let (frames, _) = self.writer.finish()?;
+        Ok((path, frames))
+    }
+
+    /// Pushes the frames due at `world.time`: one render serves every frame time the last step
+    /// passed.
+    pub fn capture_due(
+        &mut self,
+        gfx: &mut Gfx,
+        world: &World,
+        view: SceneView<'_>,
+    ) -> anyhow::Result<()> {
+        if world.time + 1e-9 < self.next {
+            return Ok(());
+        }
+        let image = render_view(gfx, world, view)?;
+        let frame = image.crop(0, 0, self.width, self.height);
+        anyhow::ensure!(
+            frame.width == self.width && frame.height == self.height,
+            "the window shrank during the recording"
+        );
+        while world.time + 1e-9 >= self.next {
+            self.writer.push(frame.clone())?;
+            self.next += 1.0 / self.fps;
+        }
+        Ok(())
+    }
+}
+
+/// Renders the scene alone and reads back the 3D view's pixels (top left = view's top left):
+/// from the scene texture, or from the window-sized capture drawn with a viewport.
+fn render_view(gfx: &mut Gfx, world: &World, view: SceneView<'_>) -> anyhow::Result<Image> {
+    let scene = prepare_scene(gfx, world, view);
+    let mut encoder = gfx.gpu.device.create_command_encoder(&Default::default());
+    if scene.is_some() {
+        let target = gfx.scene.as_ref().expect("sized by prepare_scene");
+        gfx.renderer.draw(&mut encoder, &target.view, None);
+        target.copy_to_buffer(&mut encoder);
+        gfx.gpu.queue.submit([encoder.finish()]);
+        return target.read(&gfx.gpu.device);
+    }
+    gfx.ensure_window_capture();
+    let capture = gfx.capture.as_ref().expect("created above");
+    gfx.renderer
+        .draw(&mut encoder, &capture.srgb_view, Some(view.rect.0));
+    capture.copy_to_buffer(&mut encoder);
+    gfx.gpu.queue.submit([encoder.finish()]);
+    let [x, y, w, h] = view.rect.pixels();
+    Ok(capture.read(&gfx.gpu.device)?.crop(x, y, w, h))
+}
