@@ -3,7 +3,7 @@
 
 use super::Progress;
 use super::plot::{Series, log_log_plot};
-use super::scenarios::{self, Scenario};
+use super::scenarios::{self, Engine, Scenario};
 use crate::sim::Settings;
 use crate::sim::settings::{ConstraintSchedule, RotationIntegrator};
 use serde::Serialize;
@@ -16,13 +16,16 @@ pub struct AccuracyConfig {
     /// Scenarios to run (empty: all).
     pub scenarios: Vec<Scenario>,
     pub dts: Vec<f64>,
+    /// Setting combinations to run (empty: all, or the reduced set with `quick`).
+    pub combinations: Vec<String>,
     /// Reduced sweep for smoke tests (two time steps, fewer combinations).
     pub quick: bool,
     /// Folder for the CSV and the plots.
     pub out: PathBuf,
 }
 
-/// The setting combinations compared: the coursework default, each opt-in alone, and all.
+/// The setting combinations compared: the coursework default, each of its opt-ins alone, the
+/// best of them together (`coursework_tuned`), and the soft-step solver (`accurate`).
 pub fn combinations() -> Vec<(&'static str, Settings)> {
     let d = Settings::default();
     let with = |f: &dyn Fn(&mut Settings)| {
@@ -55,17 +58,13 @@ pub fn combinations() -> Vec<(&'static str, Settings)> {
             "sparse_schedule",
             with(&|s| s.constraint_schedule = ConstraintSchedule::Sparse),
         ),
+        ("coursework_tuned", Settings::coursework_tuned()),
         ("accurate", Settings::accurate()),
     ]
 }
 
 /// The combinations of the reduced (`--quick`) sweep.
-const QUICK_COMBINATIONS: [&str; 4] = [
-    "coursework",
-    "gyroscopic",
-    "restitution_threshold",
-    "accurate",
-];
+const QUICK_COMBINATIONS: [&str; 4] = ["coursework", "coursework_tuned", "accurate", "rapier"];
 
 /// Restitutions of the bounce scenario: one run per value and combination.
 const BOUNCE_RESTITUTIONS: [f64; 3] = [1.0, 0.8, 0.5];
@@ -94,7 +93,21 @@ struct Job {
     name: String,
     combination: &'static str,
     settings: Settings,
+    engine: Engine,
     dt: f64,
+}
+
+/// The combinations with the engine that steps them: tumble for every setting combination,
+/// and Rapier (with the preset's friction and restitution) when it is built in.
+fn engines() -> Vec<(&'static str, Settings, Engine)> {
+    let mut all: Vec<(&'static str, Settings, Engine)> = combinations()
+        .into_iter()
+        .map(|(name, settings)| (name, settings, Engine::Tumble))
+        .collect();
+    if cfg!(feature = "compare-rapier") {
+        all.push(("rapier", Settings::accurate(), Engine::Rapier));
+    }
+    all
 }
 
 fn jobs(config: &AccuracyConfig) -> (Vec<Job>, Vec<f64>) {
@@ -104,10 +117,13 @@ fn jobs(config: &AccuracyConfig) -> (Vec<Job>, Vec<f64>) {
         config.scenarios.clone()
     };
     let mut dts = config.dts.clone();
-    let mut combos = combinations();
+    let mut combos = engines();
     if config.quick {
         dts = vec![0.04, 0.01];
-        combos.retain(|(name, _)| QUICK_COMBINATIONS.contains(name));
+        combos.retain(|(name, ..)| QUICK_COMBINATIONS.contains(name));
+    }
+    if !config.combinations.is_empty() {
+        combos.retain(|(name, ..)| config.combinations.iter().any(|c| c == name));
     }
     let mut jobs = Vec::new();
     for &scenario in &scenarios {
@@ -120,7 +136,7 @@ fn jobs(config: &AccuracyConfig) -> (Vec<Job>, Vec<f64>) {
             vec![(scenario.name().to_string(), None)]
         };
         for (name, restitution) in &variants {
-            for (combination, base) in &combos {
+            for &(combination, ref base, engine) in &combos {
                 for &dt in &dts {
                     let mut settings = Settings {
                         time_step: dt,
@@ -134,6 +150,7 @@ fn jobs(config: &AccuracyConfig) -> (Vec<Job>, Vec<f64>) {
                         name: name.clone(),
                         combination,
                         settings,
+                        engine,
                         dt,
                     });
                 }
@@ -155,7 +172,7 @@ pub fn run(config: &AccuracyConfig, progress: &dyn Progress) -> anyhow::Result<A
     let mut csv = String::from("scenario,combination,dt,wall_per_sim_second,metric,value\n");
     for (k, job) in jobs.iter().enumerate() {
         progress.message(&format!("{} {} dt={}", job.name, job.combination, job.dt));
-        let outcome = scenarios::run(job.scenario, &job.settings);
+        let outcome = scenarios::run_with(job.scenario, &job.settings, job.engine);
         for (metric, value) in &outcome.metrics {
             csv.push_str(&format!(
                 "{},{},{},{:.6e},{metric},{value:.6e}\n",

@@ -218,8 +218,12 @@ fn measure_tumble(
 #[cfg(feature = "compare-rapier")]
 fn measure_rapier(scene: &str, n: usize, config: &ScaleConfig) -> anyhow::Result<Measurement> {
     let baseline = alloc::reset_peak();
-    let world = generated(scene, n, settings_for(Variant::Rapier))?;
-    let mut rapier = super::rapier::RapierScene::from_world(&world);
+    let settings = Settings {
+        friction: 0.0,
+        ..settings_for(Variant::Rapier)
+    };
+    let world = generated(scene, n, settings)?;
+    let mut rapier = super::rapier::RapierScene::from_world(&world, false);
     drop(world);
     let times = time_steps(config, |_| rapier.step());
     let total: f64 = times.iter().sum();

@@ -111,8 +111,25 @@ fn single(shape: Shape, body: RigidBody, settings: Settings) -> World {
     )
 }
 
-/// Runs `world` for `duration` simulated seconds calling `observe` after every step.
+/// What steps a scenario's world.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Engine {
+    Tumble,
+    /// Rapier on the same bodies, settings and constraints (feature `compare-rapier`): the
+    /// scenario's world mirrors Rapier's state after every step.
+    Rapier,
+}
+
+/// One scenario run: the settings and the engine.
+pub struct Run {
+    pub settings: Settings,
+    pub engine: Engine,
+}
+
+/// Runs `world` for `duration` simulated seconds calling `observe` after every step; returns
+/// the wall seconds of stepping (observation excluded) per simulated second.
 fn simulate(
+    engine: Engine,
     world: &mut World,
     duration: f64,
     mut observe: impl FnMut(&World, &crate::StepStats),
@@ -122,33 +139,65 @@ fn simulate(
     } else {
         0
     };
-    let start = Instant::now();
+    let mut stepping = 0.0;
+    let mut step = stepper(engine, world);
     for _ in 0..steps {
-        let stats = world.step();
+        let start = Instant::now();
+        let stats = step(world);
+        stepping += start.elapsed().as_secs_f64();
         observe(world, &stats);
     }
-    start.elapsed().as_secs_f64() / duration
+    stepping / duration
+}
+
+/// A function that advances `world` by one step with `engine`.
+fn stepper(engine: Engine, world: &World) -> Box<dyn FnMut(&mut World) -> crate::StepStats> {
+    match engine {
+        Engine::Tumble => Box::new(|w: &mut World| w.step()),
+        #[cfg(feature = "compare-rapier")]
+        Engine::Rapier => {
+            let mut mirror = super::rapier::RapierScene::from_world(world, true);
+            Box::new(move |w: &mut World| {
+                mirror.step();
+                mirror.copy_into(w);
+                crate::StepStats::default()
+            })
+        }
+        #[cfg(not(feature = "compare-rapier"))]
+        Engine::Rapier => {
+            let _ = world;
+            panic!("Rapier is compared only in builds with the compare-rapier feature")
+        }
+    }
 }
 
 pub fn run(scenario: Scenario, settings: &Settings) -> Outcome {
-    let settings = settings.clone();
+    run_with(scenario, settings, Engine::Tumble)
+}
+
+/// A scenario stepped by `engine`.
+pub fn run_with(scenario: Scenario, settings: &Settings, engine: Engine) -> Outcome {
+    let run = &Run {
+        settings: settings.clone(),
+        engine,
+    };
     let (wall, metrics, finite) = match scenario {
-        Scenario::FreeFall => free_fall(settings),
+        Scenario::FreeFall => free_fall(run),
         Scenario::SpinEllipsoid => spin(
             shape(&assets::ellipsoid(DVec3::new(6.0, 4.0, 2.5), 10, 20)),
             DVec3::Y,
-            settings,
+            run,
         ),
         Scenario::SpinLongOctahedron => spin(
             shape(&assets::octahedron(DVec3::new(3.0, 10.0, 4.0))),
             DVec3::Z,
-            settings,
+            run,
         ),
-        Scenario::Bounce => bounce(settings),
-        Scenario::Pendulum => pendulum(settings),
-        Scenario::Tower => tower(settings),
-        Scenario::Chains => chains(settings),
-        Scenario::MixedEnergy => mixed_energy(settings),
+        Scenario::Bounce => bounce(run),
+        Scenario::Pendulum => pendulum(run),
+        Scenario::Tower => tower(run),
+        Scenario::Chains => chains(run),
+        Scenario::MixedEnergy => mixed_energy(run),
     };
     Outcome {
         wall_per_sim_second: wall,
@@ -164,7 +213,8 @@ fn m(name: &str, value: f64) -> (String, f64) {
 }
 
 /// A box thrown upwards high above the ground: position error against `x0 + v0 t + g t^2 / 2`.
-fn free_fall(settings: Settings) -> Measured {
+fn free_fall(run: &Run) -> Measured {
+    let settings = run.settings.clone();
     let s = shape(&assets::cuboid(DVec3::new(1.0, 1.0, 1.0)));
     let mut b = RigidBody::on_shape(
         &s,
@@ -180,7 +230,7 @@ fn free_fall(settings: Settings) -> Measured {
     let mut world = single(s, b, settings);
     let duration = Scenario::FreeFall.duration();
     let mut worst: f64 = 0.0;
-    let wall = simulate(&mut world, duration, |w, _| {
+    let wall = simulate(run.engine, &mut world, duration, |w, _| {
         let t = w.time;
         worst = worst.max((w.bodies[0].position - (x0 + v0 * t + 0.5 * g * t * t)).length());
     });
@@ -234,7 +284,8 @@ fn first_flip(series: impl Iterator<Item = (f64, f64)>) -> f64 {
 }
 
 /// Torque-free spin near the intermediate principal axis, no gravity, no ground.
-fn spin(s: Shape, axis: DVec3, settings: Settings) -> Measured {
+fn spin(s: Shape, axis: DVec3, run: &Run) -> Measured {
+    let settings = run.settings.clone();
     let settings = Settings {
         gravity: DVec3::ZERO,
         ..settings
@@ -250,7 +301,7 @@ fn spin(s: Shape, axis: DVec3, settings: Settings) -> Measured {
     let mut world = single(s, b, settings);
     let (mut l_err, mut e_err): (f64, f64) = (0.0, 0.0);
     let mut spin_axis = Vec::new();
-    let wall = simulate(&mut world, duration, |w, _| {
+    let wall = simulate(run.engine, &mut world, duration, |w, _| {
         let b = &w.bodies[0];
         let l = b.world_inertia() * b.angular_velocity;
         l_err = l_err.max((l - l0).length() / l0.length());
@@ -290,7 +341,8 @@ fn spin(s: Shape, axis: DVec3, settings: Settings) -> Measured {
 
 /// An octahedron dropped tip-down (the lowest vertex straight below the centre of mass, so no
 /// torque): successive apex heights should fall by e^2 per bounce.
-fn bounce(settings: Settings) -> Measured {
+fn bounce(run: &Run) -> Measured {
+    let settings = run.settings.clone();
     let h = 2.0;
     let s = shape(&assets::octahedron(DVec3::splat(h)));
     let b = RigidBody::on_shape(
@@ -305,19 +357,24 @@ fn bounce(settings: Settings) -> Measured {
     let mut world = single(s, b, settings);
     let mut heights = vec![20.0];
     let (mut previous_vy, mut max_y) = (0.0, 0.0f64);
-    let wall = simulate(&mut world, Scenario::Bounce.duration(), |w, _| {
-        let b = &w.bodies[0];
-        max_y = max_y.max(b.position.y - h);
-        // An apex: upward velocity turned downward.
-        if previous_vy > 0.0 && b.linear_velocity.y <= 0.0 {
-            heights.push(max_y);
-        }
-        // A bounce: the ascent starts, its apex is measured from here.
-        if previous_vy <= 0.0 && b.linear_velocity.y > 0.0 {
-            max_y = 0.0;
-        }
-        previous_vy = b.linear_velocity.y;
-    });
+    let wall = simulate(
+        run.engine,
+        &mut world,
+        Scenario::Bounce.duration(),
+        |w, _| {
+            let b = &w.bodies[0];
+            max_y = max_y.max(b.position.y - h);
+            // An apex: upward velocity turned downward.
+            if previous_vy > 0.0 && b.linear_velocity.y <= 0.0 {
+                heights.push(max_y);
+            }
+            // A bounce: the ascent starts, its apex is measured from here.
+            if previous_vy <= 0.0 && b.linear_velocity.y > 0.0 {
+                max_y = 0.0;
+            }
+            previous_vy = b.linear_velocity.y;
+        },
+    );
     let bounces = heights.len().min(4);
     let mut error: f64 = 0.0;
     for k in 1..bounces {
@@ -342,7 +399,8 @@ fn bounce(settings: Settings) -> Measured {
 /// A box hanging from a fixed box by a rigid distance constraint (lower = upper = 1) attached at
 /// its centre of mass: a simple pendulum of length L. Period against the closed form
 /// `2 pi sqrt(L/g) (1 + theta0^2/16 + 11 theta0^4/3072)`, amplitude against its initial value.
-fn pendulum(settings: Settings) -> Measured {
+fn pendulum(run: &Run) -> Measured {
+    let settings = run.settings.clone();
     let s = shape(&assets::cuboid(DVec3::new(2.0, 1.0, 1.5)));
     let centre = s.rest_vertices.len() - 1; // the fan's apex: the box's centre of mass
     assert!(s.rest_vertices[centre].length() < 1e-12);
@@ -380,7 +438,7 @@ fn pendulum(settings: Settings) -> Measured {
     let mut previous: Option<(f64, f64)> = None;
     let mut amplitude_late: f64 = 0.0;
     let duration = Scenario::Pendulum.duration();
-    let wall = simulate(&mut world, duration, |w, _| {
+    let wall = simulate(run.engine, &mut world, duration, |w, _| {
         let d = w.bodies[1].position - pivot;
         let theta = d.x.atan2(-d.y);
         if let Some((t0, th0)) = previous
@@ -420,7 +478,8 @@ fn pendulum(settings: Settings) -> Measured {
 }
 
 /// Boxes of very different densities stacked exactly touching, at rest: they should stay put.
-fn tower(settings: Settings) -> Measured {
+fn tower(run: &Run) -> Measured {
+    let settings = run.settings.clone();
     let s = shape(&assets::cuboid(DVec3::new(6.0, 3.0, 4.0)));
     let densities = [3000.0, 1000.0, 200.0, 50.0];
     let bodies: Vec<RigidBody> = densities
@@ -441,7 +500,7 @@ fn tower(settings: Settings) -> Measured {
     let mut world = World::new(vec![s], vec!["box".into()], bodies, Vec::new(), settings);
     let duration = Scenario::Tower.duration();
     let (mut drift, mut jitter, mut tilt): (f64, f64, f64) = (0.0, 0.0, 0.0);
-    let wall = simulate(&mut world, duration, |w, _| {
+    let wall = simulate(run.engine, &mut world, duration, |w, _| {
         for (b, x0) in w.bodies.iter().zip(&start) {
             drift = drift.max((b.position - *x0).length());
             tilt = tilt.max(b.orientation.angle_between(DQuat::IDENTITY));
@@ -463,18 +522,24 @@ fn tower(settings: Settings) -> Measured {
 }
 
 /// The built-in two-chain scene: worst constraint violation relative to the rest length.
-fn chains(settings: Settings) -> Measured {
+fn chains(run: &Run) -> Measured {
+    let settings = run.settings.clone();
     let mut world = crate::scene::load("two-chain", &crate::ConstraintsChoice::Auto, settings)
         .expect("built-in scene");
     let (mut worst, mut visits, mut steps, mut budget_hits) = (0.0f64, 0usize, 0usize, 0usize);
-    let wall = simulate(&mut world, Scenario::Chains.duration(), |w, stats| {
-        for c in &w.constraints {
-            worst = worst.max(c.violation(&w.bodies) / c.rest_length);
-        }
-        visits += stats.constraint_visits;
-        steps += 1;
-        budget_hits += stats.budget_hit as usize;
-    });
+    let wall = simulate(
+        run.engine,
+        &mut world,
+        Scenario::Chains.duration(),
+        |w, stats| {
+            for c in &w.constraints {
+                worst = worst.max(c.violation(&w.bodies) / c.rest_length);
+            }
+            visits += stats.constraint_visits;
+            steps += 1;
+            budget_hits += stats.budget_hit as usize;
+        },
+    );
     let finite = world.all_finite();
     (
         wall,
@@ -487,19 +552,27 @@ fn chains(settings: Settings) -> Measured {
     )
 }
 
-/// The built-in mixed scene with e = 1: total energy should stay what it was.
-fn mixed_energy(settings: Settings) -> Measured {
+/// The built-in mixed scene with e = 1 and no friction: total energy should stay what it was
+/// (friction takes energy away by design; the coursework has none).
+fn mixed_energy(run: &Run) -> Measured {
+    let settings = run.settings.clone();
     let settings = Settings {
         restitution: 1.0,
+        friction: 0.0,
         ..settings
     };
     let mut world = crate::scene::load("mixed", &crate::ConstraintsChoice::None, settings)
         .expect("built-in scene");
     let e0 = world.total_energy();
     let mut worst: f64 = 0.0;
-    let wall = simulate(&mut world, Scenario::MixedEnergy.duration(), |w, _| {
-        worst = worst.max((w.total_energy() - e0).abs() / e0.abs());
-    });
+    let wall = simulate(
+        run.engine,
+        &mut world,
+        Scenario::MixedEnergy.duration(),
+        |w, _| {
+            worst = worst.max((w.total_energy() - e0).abs() / e0.abs());
+        },
+    );
     let finite = world.all_finite();
     (
         wall,

@@ -49,6 +49,9 @@ pub struct AccuracyArgs {
     /// Time steps to sweep.
     #[arg(long, value_delimiter = ',', default_values_t = [0.04, 0.02, 0.01, 0.005, 0.0025])]
     pub dts: Vec<f64>,
+    /// Setting combinations to run (default: all; see the table's rows for their names).
+    #[arg(long, value_delimiter = ',')]
+    pub combinations: Vec<String>,
     /// Reduced sweep for smoke tests (two time steps, fewer combinations).
     #[arg(long)]
     pub quick: bool,
@@ -144,6 +147,7 @@ pub fn accuracy(args: &AccuracyArgs) -> anyhow::Result<()> {
     let config = AccuracyConfig {
         scenarios: args.scenarios.clone(),
         dts: args.dts.clone(),
+        combinations: args.combinations.clone(),
         quick: args.quick,
         out: args.out.clone(),
     };

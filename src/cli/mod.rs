@@ -7,19 +7,25 @@ pub mod view;
 
 use clap::Args;
 use std::path::PathBuf;
-use tumble::sim::settings::{BroadPhase, ConstraintSchedule, RotationIntegrator};
+use tumble::sim::settings::{BroadPhase, ConstraintSchedule, RotationIntegrator, Solver};
 use tumble::{ConstraintsChoice, Settings};
 
 /// Simulation settings common to `run`, `view`, `record` and the benchmarks. Defaults reproduce
 /// the coursework exactly; every improvement is opt-in.
 #[derive(Debug, Clone, Args)]
 pub struct SettingsArgs {
+    /// Solver: the coursework's method (default) or tumble's soft step.
+    #[arg(long, value_enum)]
+    pub solver: Option<Solver>,
     /// Time step in seconds.
     #[arg(long, value_name = "S")]
     pub dt: Option<f64>,
     /// Coefficient of restitution (0 = plastic, 1 = elastic).
     #[arg(long, value_name = "E")]
     pub restitution: Option<f64>,
+    /// Coulomb friction coefficient (soft-step solver; the coursework has no friction).
+    #[arg(long, value_name = "MU")]
+    pub friction: Option<f64>,
     /// The coursework's maxIterations: the constraint loop stops once visits x M reach K, M being
     /// the number of inequality constraints (two per constraint record), so a step makes at most
     /// ceil(K / M) constraint visits.
@@ -67,6 +73,16 @@ impl SettingsArgs {
                 "--dt must be a non-negative number of seconds, got {v}"
             );
             s.time_step = v;
+        }
+        if let Some(v) = self.solver {
+            s.solver = v;
+        }
+        if let Some(v) = self.friction {
+            anyhow::ensure!(
+                v.is_finite() && v >= 0.0,
+                "--friction must be a non-negative number, got {v}"
+            );
+            s.friction = v;
         }
         if let Some(v) = self.restitution {
             anyhow::ensure!(

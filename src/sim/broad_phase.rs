@@ -73,6 +73,29 @@ impl BroadPhase {
         PairQueue::new(self.grid.overlapping_pairs(&self.proxies, keep, tested))
     }
 
+    /// For the soft-step solver: each body's box grown by `margins[i]` (how far it can travel in
+    /// the step) goes into the grid, and the pairs (i < j, sorted) whose grown boxes overlap and
+    /// for which `keep(i, j)` come back. `tested` counts box tests.
+    pub fn speculative_pairs(
+        &mut self,
+        bodies: &[RigidBody],
+        shapes: &[Shape],
+        margins: &[f64],
+        keep: impl Fn(usize, usize) -> bool,
+        tested: &mut usize,
+    ) -> Vec<(u32, u32)> {
+        self.update_boxes(bodies, shapes);
+        let active: Vec<bool> = bodies.iter().map(|b| !b.quarantined).collect();
+        self.proxies = self
+            .aabbs
+            .iter()
+            .zip(margins)
+            .map(|(b, &m)| b.fattened(m))
+            .collect();
+        self.grid.rebuild(&self.proxies, &active);
+        self.grid.overlapping_pairs(&self.proxies, keep, tested)
+    }
+
     /// Body `index` was moved while the loop stood at some pair: its box is refreshed, and if it
     /// left its proxy the body is re-inserted and every pair it now forms is offered to `queue`
     /// (which keeps those the loop has not passed).

@@ -15,12 +15,28 @@ pub fn integrate_bodies(bodies: &mut [RigidBody], settings: &Settings, dt: f64) 
         .for_each(|body| integrate_body(body, settings, dt));
 }
 
+/// The coursework's update of one body: velocity, then pose (with the skeleton's `QExp` cutoff).
 pub fn integrate_body(body: &mut RigidBody, settings: &Settings, dt: f64) {
     body.linear_velocity += dt * settings.gravity;
+    integrate_pose(body, settings.rotation_integrator, dt, true);
+}
+
+/// Position from the (new) linear velocity, orientation by the rotation integrator. With
+/// `qexp_cutoff`, the coursework integrator skips half-angles below [`QEXP_CUTOFF`] as the
+/// skeleton does; the opt-in integrators always rotate exactly.
+pub fn integrate_pose(
+    body: &mut RigidBody,
+    integrator: RotationIntegrator,
+    dt: f64,
+    qexp_cutoff: bool,
+) {
     body.position += dt * body.linear_velocity;
-    match settings.rotation_integrator {
-        RotationIntegrator::Coursework => {
+    match integrator {
+        RotationIntegrator::Coursework if qexp_cutoff => {
             body.orientation = coursework_rotate_by(body.orientation, body.angular_velocity, dt);
+        }
+        RotationIntegrator::Coursework => {
+            body.orientation = rotate_by(body.orientation, body.angular_velocity, dt);
         }
         RotationIntegrator::Gyroscopic => {
             body.angular_velocity = gyroscopic_step(body, dt);
@@ -29,12 +45,14 @@ pub fn integrate_body(body: &mut RigidBody, settings: &Settings, dt: f64) {
         RotationIntegrator::AngularMomentum => {
             // Torque-free: world angular momentum L is constant over the step. Rotate by the
             // angular velocity at the half-step orientation (explicit midpoint, second order),
-            // then read the new angular velocity off L: |L| and L are kept exactly.
-            let momentum = body.world_inertia() * body.angular_velocity;
-            let half = rotate_by(body.orientation, body.angular_velocity, 0.5 * dt);
-            let w_half = inverse_inertia_at(body, half) * momentum;
-            body.orientation = rotate_by(body.orientation, w_half, dt);
-            body.angular_velocity = inverse_inertia_at(body, body.orientation) * momentum;
+            // then read the new angular velocity off L: |L| and L are kept exactly. Tensors are
+            // applied in body frame (`q I q^-1 v`), cheaper than forming `R I R^T`.
+            let q = body.orientation;
+            let momentum = q * (body.inertia * (q.inverse() * body.angular_velocity));
+            let half = rotate_by(q, body.angular_velocity, 0.5 * dt);
+            let w_half = inverse_inertia_at(body, half, momentum);
+            body.orientation = rotate_by(q, w_half, dt);
+            body.angular_velocity = inverse_inertia_at(body, body.orientation, momentum);
         }
     }
 }
@@ -51,9 +69,9 @@ pub fn coursework_rotate_by(q: DQuat, angular_velocity: DVec3, dt: f64) -> DQuat
     rotate_by(q, angular_velocity, dt)
 }
 
-fn inverse_inertia_at(body: &RigidBody, q: DQuat) -> DMat3 {
-    let r = DMat3::from_quat(q);
-    r * body.inverse_inertia * r.transpose()
+/// `I(q)^-1 v`: the world inverse inertia at orientation `q` applied to `v`.
+fn inverse_inertia_at(body: &RigidBody, q: DQuat, v: DVec3) -> DVec3 {
+    q * (body.inverse_inertia * (q.inverse() * v))
 }
 
 /// `normalise(exp((0, dt/2 w)) q)` with `exp((0, theta u)) = (cos theta, sin theta u)`:

@@ -17,6 +17,7 @@ pub mod pair_queue;
 pub mod quarantine;
 pub mod settings;
 pub mod shape;
+pub mod soft_step;
 pub mod stats;
 pub mod step_context;
 pub mod world;

@@ -63,6 +63,14 @@ macro_rules! choice_enum {
 }
 
 choice_enum! {
+    /// Which solver advances the world.
+    pub enum Solver (default Coursework) {
+        Coursework = "coursework": "The coursework's method: contacts resolved pair by pair by projection and one restitution impulse, distance constraints projected on positions then velocities.",
+        SoftStep = "soft-step": "Contact manifolds with friction and distance constraints solved together, warm-started, in substeps with soft position correction and relaxation (after Catto's soft step, Box2D v3).",
+    }
+}
+
+choice_enum! {
     /// How candidate body pairs are found.
     pub enum BroadPhase (default Grid) {
         AllPairs = "all-pairs": "Test every pair's bounding boxes (the coursework's loop).",
@@ -90,6 +98,7 @@ choice_enum! {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct Settings {
+    pub solver: Solver,
     /// Seconds per step.
     pub time_step: f64,
     /// Coefficient of restitution `e` (the coursework's CRCoeff).
@@ -101,6 +110,8 @@ pub struct Settings {
     /// Constraint tolerance `tau` (length for positions, speed for velocities).
     pub tolerance: f64,
     pub gravity: DVec3,
+    /// Coulomb friction coefficient `mu` (the soft-step solver; the coursework has no friction).
+    pub friction: f64,
     /// Skip the impulse of contacts whose bodies already separate (`u.n <= 0`).
     pub skip_separating_contacts: bool,
     /// Contacts whose normal closing speed is below this get `e = 0` (0 = off).
@@ -108,7 +119,9 @@ pub struct Settings {
     /// Contacts act at the centroid of the contact patch (all penetrating points) rather than at
     /// one deepest point: resting faces get no spurious torque.
     pub contact_patches: bool,
-    /// Substeps per step, each of `time_step / substeps` (Macklin et al. 2019).
+    /// Substeps per step, each of `time_step / substeps` (Macklin et al. 2019). The coursework
+    /// solver repeats its whole update; the soft-step solver detects contacts once per step and
+    /// solves and integrates in substeps.
     pub substeps: u32,
     pub rotation_integrator: RotationIntegrator,
     pub broad_phase: BroadPhase,
@@ -118,11 +131,13 @@ pub struct Settings {
 impl Default for Settings {
     fn default() -> Self {
         Self {
+            solver: Solver::Coursework,
             time_step: 0.02,
             restitution: 1.0,
             max_iterations: 10_000,
             tolerance: 1e-3,
             gravity: DVec3::new(0.0, -9.8, 0.0),
+            friction: 0.5,
             skip_separating_contacts: false,
             restitution_threshold: 0.0,
             contact_patches: false,
@@ -135,8 +150,22 @@ impl Default for Settings {
 }
 
 impl Settings {
-    /// The combination `tumble bench accuracy` found best (see docs/accuracy.md).
+    /// The `--accurate` preset: tumble's soft-step solver, 4 substeps, the angular-momentum
+    /// rotation integrator, friction 0.5, bounces only for impacts faster than 0.5 units/s
+    /// (chosen by `tumble bench accuracy`; see docs/accuracy.md).
     pub fn accurate() -> Self {
+        Self {
+            solver: Solver::SoftStep,
+            substeps: 4,
+            rotation_integrator: RotationIntegrator::AngularMomentum,
+            restitution_threshold: 0.5,
+            ..Self::default()
+        }
+    }
+
+    /// The best the coursework's own method reaches with the opt-ins (the angular-momentum
+    /// integrator, a restitution threshold and the sparse schedule): the former `--accurate`.
+    pub fn coursework_tuned() -> Self {
         Self {
             rotation_integrator: RotationIntegrator::AngularMomentum,
             restitution_threshold: 0.5,
@@ -158,6 +187,9 @@ impl Settings {
         };
         if !s.tolerance.is_finite() || s.tolerance < 0.0 {
             s.tolerance = 0.0;
+        }
+        if !s.friction.is_finite() || s.friction < 0.0 {
+            s.friction = 0.0;
         }
         if !s.restitution_threshold.is_finite() || s.restitution_threshold < 0.0 {
             s.restitution_threshold = 0.0;

@@ -160,6 +160,16 @@ impl Shape {
     }
 }
 
+impl Shape {
+    /// Largest distance of a rest vertex from the centre of mass.
+    pub fn bounding_radius(&self) -> f64 {
+        self.rest_vertices
+            .iter()
+            .map(|v| v.length())
+            .fold(0.0, f64::max)
+    }
+}
+
 /// Faces that belong to exactly one tetrahedron, wound so that the tetrahedron lies behind them
 /// whatever its orientation.
 fn boundary_triangles(vertices: &[DVec3], tetrahedra: &[[u32; 4]]) -> Vec<[u32; 3]> {

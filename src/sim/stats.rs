@@ -19,14 +19,16 @@ pub enum Stage {
     ContactResolution,
     /// Body-ground contacts resolved by projection and impulse.
     Ground,
-    /// Distance constraints.
+    /// Distance constraints (coursework solver).
     Constraints,
+    /// Contacts and constraints solved together in substeps (soft-step solver).
+    Solve,
     /// Finiteness check: bodies whose state blew up are frozen at their last good pose.
     PoseCheck,
 }
 
 impl Stage {
-    pub const COUNT: usize = 7;
+    pub const COUNT: usize = 8;
     pub const ALL: [Stage; Stage::COUNT] = [
         Stage::Integrate,
         Stage::BroadPhase,
@@ -34,6 +36,7 @@ impl Stage {
         Stage::ContactResolution,
         Stage::Ground,
         Stage::Constraints,
+        Stage::Solve,
         Stage::PoseCheck,
     ];
 
@@ -46,6 +49,7 @@ impl Stage {
             Stage::ContactResolution => "contact_resolution",
             Stage::Ground => "ground",
             Stage::Constraints => "constraints",
+            Stage::Solve => "solve",
             Stage::PoseCheck => "pose_check",
         }
     }
@@ -170,10 +174,12 @@ pub struct StepStats {
     /// Contacts computed by the separating-axis fallback because parry's GJK/EPA failed on
     /// intersecting hulls (faces resting flush).
     pub narrow_phase_fallbacks: usize,
-    /// Body-body contacts resolved.
+    /// Body-body contacts resolved (soft step: body-body manifolds).
     pub contacts: usize,
-    /// Body-ground contacts resolved.
+    /// Body-ground contacts resolved (soft step: ground manifolds).
     pub ground_contacts: usize,
+    /// Points of all manifolds (soft step).
+    pub manifold_points: usize,
     /// Deepest penetration among the contacts of this step.
     pub max_penetration: f64,
     pub constraint_visits: usize,
@@ -193,6 +199,7 @@ impl StepStats {
         self.narrow_phase_fallbacks += other.narrow_phase_fallbacks;
         self.contacts += other.contacts;
         self.ground_contacts += other.ground_contacts;
+        self.manifold_points += other.manifold_points;
         self.max_penetration = self.max_penetration.max(other.max_penetration);
         self.constraint_visits += other.constraint_visits;
         self.constraint_corrections += other.constraint_corrections;

@@ -12,8 +12,9 @@ use super::coursework::schedule::solve_constraints;
 use super::integrate::integrate_bodies;
 use super::narrow_phase::{Contact, ground_contact};
 use super::quarantine::Quarantine;
-use super::settings::Settings;
+use super::settings::{Settings, Solver};
 use super::shape::Shape;
+use super::soft_step::{Scene, SoftStep};
 use super::stats::{Stage, StepStats, Stopwatch};
 use super::step_context::StepContext;
 use glam::DVec3;
@@ -36,6 +37,7 @@ pub struct World {
     constraints_by_body: Vec<Vec<u32>>,
     broad_phase: BroadPhase,
     contact_stage: ContactStage,
+    soft_step: SoftStep,
     quarantine: Quarantine,
     initial_bodies: Vec<RigidBody>,
 }
@@ -57,6 +59,7 @@ impl World {
             broad_phase: BroadPhase::new(&bodies, &shapes),
             quarantine: Quarantine::new(&bodies),
             contact_stage: ContactStage::default(),
+            soft_step: SoftStep::default(),
             initial_bodies: bodies.clone(),
             shapes,
             shape_names,
@@ -74,20 +77,49 @@ impl World {
     pub fn reset(&mut self) {
         self.bodies = self.initial_bodies.clone();
         self.quarantine = Quarantine::new(&self.bodies);
+        self.soft_step = SoftStep::default();
         self.time = 0.0;
         self.step_count = 0;
     }
 
-    /// One time step: with substeps, the stages run `substeps` times with `dt / substeps`.
+    /// One time step by the world's solver.
     pub fn step(&mut self) -> StepStats {
         let ctx = StepContext::new(&self.settings, self.constraints.len());
-        let mut stats = StepStats::default();
-        for _ in 0..ctx.settings.substeps {
-            let sub = self.substep(&ctx);
-            stats.accumulate(sub);
-        }
+        let stats = match ctx.settings.solver {
+            Solver::Coursework => self.coursework_step(&ctx),
+            Solver::SoftStep => self.soft_step(&ctx),
+        };
         self.time += ctx.settings.time_step;
         self.step_count += 1;
+        stats
+    }
+
+    /// The coursework solver: with substeps, its whole update runs `substeps` times with
+    /// `dt / substeps`.
+    fn coursework_step(&mut self, ctx: &StepContext) -> StepStats {
+        let mut stats = StepStats::default();
+        for _ in 0..ctx.settings.substeps {
+            let sub = self.substep(ctx);
+            stats.accumulate(sub);
+        }
+        stats
+    }
+
+    /// The soft-step solver: collide once, solve and integrate in substeps, then the pose check.
+    fn soft_step(&mut self, ctx: &StepContext) -> StepStats {
+        let mut stats = StepStats::default();
+        let mut watch = Stopwatch::new();
+        let scene = Scene {
+            bodies: &mut self.bodies,
+            shapes: &self.shapes,
+            constraints: &self.constraints,
+        };
+        self.soft_step
+            .step(ctx, scene, &mut self.broad_phase, &mut watch, &mut stats);
+        watch.enter(Stage::PoseCheck);
+        self.quarantine
+            .check(&mut self.bodies, &mut stats.quarantined);
+        stats.timings = watch.finish();
         stats
     }
 

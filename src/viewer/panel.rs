@@ -268,11 +268,13 @@ fn scene_picker(
 fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
     preset_buttons(ui, settings);
     let Settings {
+        solver,
         time_step,
         restitution,
         max_iterations,
         tolerance,
         gravity,
+        friction,
         skip_separating_contacts,
         restitution_threshold,
         contact_patches,
@@ -281,7 +283,10 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
         broad_phase,
         constraint_schedule,
     } = settings;
+    enum_choice(ui, "solver", solver);
     ui.add(egui::Slider::new(restitution, 0.0..=1.0).text("restitution"));
+    ui.add(egui::Slider::new(friction, 0.0..=1.5).text("friction"))
+        .on_hover_text("Coulomb friction coefficient (soft-step solver; the coursework has none)");
     ui.add(
         egui::Slider::new(time_step, 0.0005..=0.05)
             .logarithmic(true)
@@ -290,7 +295,11 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
     ui.add(
         egui::Slider::new(max_iterations, 1..=100_000)
             .logarithmic(true)
-            .text("max constraint visits"),
+            .text("max iterations"),
+    )
+    .on_hover_text(
+        "The coursework's maxIterations: a step makes at most ceil(K / M) constraint visits, \
+         M = number of inequality constraints (two per record)",
     );
     ui.add(
         egui::Slider::new(tolerance, 1e-6..=0.1)

@@ -1,0 +1,242 @@
+//! Contact manifolds: up to four points per touching (or about to touch) pair, each with a
+//! feature key that names the same point from one step to the next, so the solver can start
+//! from the impulses it found last time (warm starting).
+//!
+//! Body-body manifolds come from parry's polyhedral feature clipping with a prediction distance
+//! (speculative contacts: points up to that far apart are kept, and the solver lets the bodies
+//! close the gap but no more). Ground manifolds are the hull vertices within the prediction
+//! distance of the plane y = 0.
+
+use crate::sim::body::RigidBody;
+use crate::sim::shape::Shape;
+use glam::{DQuat, DVec3};
+use parry3d_f64::math::Pose;
+use parry3d_f64::query::{ContactManifold, DefaultQueryDispatcher, PersistentQueryDispatcher};
+
+/// Index standing for the ground plane in a manifold's `body1`.
+pub const GROUND: usize = usize::MAX;
+
+/// Most points a manifold keeps.
+pub const MAX_POINTS: usize = 4;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ManifoldPoint {
+    /// Where the two surfaces meet (midway between them), world space.
+    pub point: DVec3,
+    /// Signed distance along the normal between the surfaces: negative when penetrating.
+    pub separation: f64,
+    /// Names the pair of features (vertex, edge, face) the point comes from.
+    pub key: u64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Manifold {
+    /// The first body, or [`GROUND`].
+    pub body1: usize,
+    pub body2: usize,
+    /// Unit normal from body 1 towards body 2, world space.
+    pub normal: DVec3,
+    slots: [ManifoldPoint; MAX_POINTS],
+    count: usize,
+}
+
+impl Manifold {
+    fn new(body1: usize, body2: usize, normal: DVec3, points: &[ManifoldPoint]) -> Self {
+        let mut slots = [ManifoldPoint {
+            point: DVec3::ZERO,
+            separation: 0.0,
+            key: 0,
+        }; MAX_POINTS];
+        let count = points.len().min(MAX_POINTS);
+        slots[..count].copy_from_slice(&points[..count]);
+        Self {
+            body1,
+            body2,
+            normal,
+            slots,
+            count,
+        }
+    }
+
+    pub fn points(&self) -> &[ManifoldPoint] {
+        &self.slots[..self.count]
+    }
+}
+
+fn pose(body: &RigidBody) -> Pose {
+    Pose::from_parts(body.position, body.orientation)
+}
+
+/// The manifold between bodies `i < j` with points up to `prediction` apart, or None.
+pub fn body_manifold(
+    (i, body1): (usize, &RigidBody),
+    (j, body2): (usize, &RigidBody),
+    shapes: &[Shape],
+    prediction: f64,
+) -> Option<Manifold> {
+    let (shape1, shape2) = (&shapes[body1.shape], &shapes[body2.shape]);
+    let pos12 = pose(body1).inv_mul(&pose(body2));
+    thread_local! {
+        /// parry's output buffer, reused (cleared: a manifold left from another pair would be
+        /// taken for this pair's previous one).
+        static BUFFER: std::cell::RefCell<Vec<ContactManifold<(), ()>>> = const { std::cell::RefCell::new(Vec::new()) };
+    }
+    BUFFER.with_borrow_mut(|manifolds| {
+        manifolds.clear();
+        DefaultQueryDispatcher
+            .contact_manifolds(
+                &pos12,
+                &shape1.hull,
+                &shape2.hull,
+                prediction,
+                manifolds,
+                &mut None,
+            )
+            .ok()?;
+        from_parry(manifolds.first()?, (i, body1), (j, body2), prediction)
+    })
+}
+
+/// tumble's manifold from parry's (points beyond `prediction` dropped, at most four kept).
+fn from_parry(
+    found: &ContactManifold<(), ()>,
+    (i, body1): (usize, &RigidBody),
+    (j, body2): (usize, &RigidBody),
+    prediction: f64,
+) -> Option<Manifold> {
+    let normal = (body1.orientation * found.local_n1).normalize_or_zero();
+    if normal == DVec3::ZERO || !normal.is_finite() {
+        return None;
+    }
+    let points: Vec<ManifoldPoint> = found
+        .points
+        .iter()
+        .filter(|p| p.dist <= prediction && p.dist.is_finite())
+        .map(|p| {
+            let on1 = body1.world_point(p.local_p1);
+            let on2 = body2.world_point(p.local_p2);
+            ManifoldPoint {
+                point: 0.5 * (on1 + on2),
+                separation: p.dist,
+                key: ((p.fid1.0 as u64) << 32) | p.fid2.0 as u64,
+            }
+        })
+        .collect();
+    (!points.is_empty()).then(|| Manifold::new(i, j, normal, &reduce(points, normal)))
+}
+
+/// The manifold between the ground plane (body 1, normal +y) and body `j`: the hull vertices
+/// lower than `prediction`, reduced to four.
+pub fn ground_manifold(
+    j: usize,
+    body: &RigidBody,
+    shape: &Shape,
+    prediction: f64,
+) -> Option<Manifold> {
+    let points: Vec<ManifoldPoint> = shape
+        .hull
+        .points()
+        .iter()
+        .enumerate()
+        .filter_map(|(k, &local)| {
+            let p = body.world_point(local);
+            (p.y <= prediction).then_some(ManifoldPoint {
+                point: DVec3::new(p.x, 0.5 * p.y, p.z),
+                separation: p.y,
+                key: k as u64,
+            })
+        })
+        .collect();
+    (!points.is_empty()).then(|| Manifold::new(GROUND, j, DVec3::Y, &reduce(points, DVec3::Y)))
+}
+
+/// At most [`MAX_POINTS`] of `points` that keep the patch's extent: the deepest, the one
+/// farthest from it, the one spanning the largest triangle with those two, and the one lying
+/// farthest outside that triangle (the reduction of Box2D and Rapier, in 3D).
+fn reduce(mut points: Vec<ManifoldPoint>, normal: DVec3) -> Vec<ManifoldPoint> {
+    if points.len() <= MAX_POINTS {
+        return points;
+    }
+    let deepest = argmax(&points, |p| -p.separation);
+    let a = points.swap_remove(deepest);
+    let far = argmax(&points, |p| (p.point - a.point).length_squared());
+    let b = points.swap_remove(far);
+    let area = |p: &ManifoldPoint| (b.point - a.point).cross(p.point - a.point).dot(normal);
+    let wide = argmax(&points, |p| area(p).abs());
+    let c = points.swap_remove(wide);
+    // Orient the triangle along the normal, then take the point most outside one of its edges.
+    let (b, c) = if area(&c) < 0.0 { (c, b) } else { (b, c) };
+    let outside = |p: &ManifoldPoint| {
+        [(a, b), (b, c), (c, a)]
+            .iter()
+            .map(|(u, v)| (v.point - u.point).cross(p.point - u.point).dot(normal))
+            .fold(f64::INFINITY, f64::min)
+    };
+    let d = argmax(&points, |p| -outside(p));
+    let mut kept = vec![a, b, c];
+    if outside(&points[d]) < 0.0 {
+        kept.push(points[d]);
+    }
+    kept
+}
+
+fn argmax(points: &[ManifoldPoint], score: impl Fn(&ManifoldPoint) -> f64) -> usize {
+    let mut best = (0, f64::NEG_INFINITY);
+    for (k, p) in points.iter().enumerate() {
+        let s = score(p);
+        if s > best.1 {
+            best = (k, s);
+        }
+    }
+    best.0
+}
+
+/// How far a body can travel in `dt`: its speed plus the rim speed of its spin over its
+/// bounding radius, plus what gravity adds, times `dt` (the speculative margin).
+pub fn motion_bound(body: &RigidBody, radius: f64, gravity: DVec3, dt: f64) -> f64 {
+    if !body.is_dynamic() {
+        return 0.0;
+    }
+    let speed = body.linear_velocity.length() + body.angular_velocity.length() * radius;
+    (speed + gravity.length() * dt) * dt
+}
+
+/// Rotation that takes `from` to `to` (both world orientations): `to from^-1`.
+pub fn delta_rotation(from: DQuat, to: DQuat) -> DQuat {
+    to * from.conjugate()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn point(x: f64, z: f64, separation: f64) -> ManifoldPoint {
+        ManifoldPoint {
+            point: DVec3::new(x, 0.0, z),
+            separation,
+            key: 0,
+        }
+    }
+
+    #[test]
+    fn reduction_keeps_the_deepest_and_the_corners() {
+        // A 24-gon cap seen from below with one point slightly deeper.
+        let mut points: Vec<ManifoldPoint> = (0..24)
+            .map(|k| {
+                let t = k as f64 * std::f64::consts::TAU / 24.0;
+                point(t.cos(), t.sin(), -0.01)
+            })
+            .collect();
+        points[5].separation = -0.02;
+        let kept = reduce(points, DVec3::Y);
+        assert_eq!(kept.len(), 4);
+        assert_eq!(kept[0].separation, -0.02);
+        // Spread around the rim (an inscribed square has sides of 1.41), not bunched.
+        for (k, p) in kept.iter().enumerate() {
+            for q in &kept[k + 1..] {
+                let d = (p.point - q.point).length();
+                assert!(d > 1.0, "{d}");
+            }
+        }
+    }
+}

@@ -1,0 +1,385 @@
+//! tumble's own solver, after Catto's soft step (Solver2D 2024, Box2D v3) in 3D:
+//!
+//! - contacts are detected once per step as manifolds of up to four points, speculatively (points
+//!   up to the distance the bodies can travel in the step), warm-started by feature key
+//!   ([`manifold`], [`contact_solver`]);
+//! - contacts with Coulomb friction and the distance constraints are solved together in
+//!   substeps: integrate velocities, warm start, a soft (biased) pass, integrate positions, a
+//!   rigid relax pass ([`contact_solver`], [`joint_solver`], [`softness`]);
+//! - then one restitution pass that gives each bouncing point `e^2` of the energy it arrived
+//!   with, measured in the invariant of the integrator (exact apex ratios at any step).
+
+pub mod contact_solver;
+pub mod joint_block;
+pub mod joint_solver;
+pub mod manifold;
+pub mod restitution;
+pub mod softness;
+pub mod solver_body;
+
+use super::body::{RigidBody, may_collide};
+use super::broad_phase::BroadPhase;
+use super::constraint::DistanceConstraint;
+use super::integrate::integrate_pose;
+use super::shape::Shape;
+use super::stats::{Stage, StepStats, Stopwatch};
+use super::step_context::StepContext;
+use contact_solver::{ContactCache, ContactConstraint, ContactParams, ContactPoint};
+use glam::{DQuat, DVec3};
+use joint_block::JointBlocks;
+use joint_solver::JointRow;
+use manifold::{Manifold, body_manifold, ground_manifold, motion_bound};
+use rayon::prelude::*;
+use softness::Softness;
+use solver_body::SolverBody;
+
+/// Contacts stiffer than this per substep rate ring (Box2D: a quarter of the substep rate).
+const CONTACT_HERTZ: f64 = 30.0;
+const CONTACT_DAMPING_RATIO: f64 = 10.0;
+const JOINT_HERTZ: f64 = 60.0;
+const JOINT_DAMPING_RATIO: f64 = 2.0;
+/// Fastest a soft correction pushes bodies apart (units/s).
+const MAX_PUSH_SPEED: f64 = 3.0;
+/// Points this far apart still count as contacts, whatever the speeds (units).
+const SPECULATIVE_DISTANCE: f64 = 0.02;
+
+/// What the soft-step solver carries from one step to the next: the impulses of the contact
+/// points and of the distance constraints (warm starting), and the buffers a step works in.
+#[derive(Debug, Clone, Default)]
+pub struct SoftStep {
+    contacts: ContactCache,
+    joint_impulses: Vec<f64>,
+    /// Bounding radius of each shape (for the speculative margin of spinning bodies).
+    radii: Vec<f64>,
+    blocks: JointBlocks,
+    work: Workspace,
+}
+
+/// Buffers of one step, kept so that a step allocates nothing once the scene is warm.
+#[derive(Debug, Clone, Default)]
+struct Workspace {
+    margins: Vec<f64>,
+    manifolds: Vec<Manifold>,
+    bodies: Vec<SolverBody>,
+    before_restitution: Vec<SolverBody>,
+    /// Pose and energy of every body when the step began.
+    start: Vec<(DVec3, DQuat)>,
+    start_energy: Vec<f64>,
+    contacts: Vec<ContactConstraint>,
+    points: Vec<ContactPoint>,
+    rows: Vec<JointRow>,
+    large_groups: Vec<usize>,
+}
+
+/// The bodies, shapes and constraints the solver works on.
+pub struct Scene<'a> {
+    pub bodies: &'a mut [RigidBody],
+    pub shapes: &'a [Shape],
+    pub constraints: &'a [DistanceConstraint],
+}
+
+/// The step's constants: substep length, softness, contact parameters.
+struct Substeps {
+    count: u32,
+    h: f64,
+    inv_h: f64,
+    joint_softness: Softness,
+    contact: ContactParams,
+}
+
+impl Substeps {
+    fn new(ctx: &StepContext) -> Option<Self> {
+        let count = ctx.settings.substeps.max(1);
+        let h = ctx.settings.time_step / count as f64;
+        if h <= 0.0 || !h.is_finite() {
+            return None;
+        }
+        // Stiffer than a quarter of the substep rate rings (Box2D's clamp).
+        let contact_hertz = CONTACT_HERTZ.min(0.25 / h);
+        Some(Self {
+            count,
+            h,
+            inv_h: 1.0 / h,
+            joint_softness: Softness::new(JOINT_HERTZ.min(0.25 / h), JOINT_DAMPING_RATIO, h),
+            contact: ContactParams {
+                softness: Softness::new(contact_hertz, CONTACT_DAMPING_RATIO, h),
+                static_softness: Softness::new(2.0 * contact_hertz, CONTACT_DAMPING_RATIO, h),
+                friction: ctx.settings.friction,
+                restitution: ctx.settings.restitution,
+                restitution_threshold: ctx.settings.restitution_threshold,
+                gravity: ctx.settings.gravity,
+            },
+        })
+    }
+}
+
+impl SoftStep {
+    /// One step: collide, then solve in substeps.
+    pub fn step(
+        &mut self,
+        ctx: &StepContext,
+        scene: Scene,
+        broad: &mut BroadPhase,
+        watch: &mut Stopwatch,
+        stats: &mut StepStats,
+    ) {
+        self.collide(ctx, scene.bodies, scene.shapes, broad, watch, stats);
+        watch.enter(Stage::Solve);
+        let Some(substeps) = Substeps::new(ctx) else {
+            return;
+        };
+        self.prepare(ctx, &scene, &substeps);
+        for _ in 0..substeps.count {
+            self.substep(ctx, scene.bodies, &substeps, watch);
+        }
+        watch.enter(Stage::Solve);
+        self.finish(ctx, scene.bodies, stats);
+    }
+
+    /// Broad and narrow phase: manifolds of every pair (and body on the ground) whose gap can
+    /// close within the step, ground first, then pairs in (body 1, body 2) order.
+    fn collide(
+        &mut self,
+        ctx: &StepContext,
+        bodies: &[RigidBody],
+        shapes: &[Shape],
+        broad: &mut BroadPhase,
+        watch: &mut Stopwatch,
+        stats: &mut StepStats,
+    ) {
+        watch.enter(Stage::BroadPhase);
+        if self.radii.len() != shapes.len() {
+            self.radii = shapes.iter().map(|s| s.bounding_radius()).collect();
+        }
+        let (dt, gravity) = (ctx.settings.time_step, ctx.settings.gravity);
+        let margins = &mut self.work.margins;
+        margins.clear();
+        margins.extend(
+            bodies
+                .iter()
+                .map(|b| motion_bound(b, self.radii[b.shape], gravity, dt) + SPECULATIVE_DISTANCE),
+        );
+        let keep = |i: usize, j: usize| may_collide(&bodies[i], &bodies[j]);
+        let pairs = broad.speculative_pairs(bodies, shapes, margins, keep, &mut stats.pairs_tested);
+        watch.enter(Stage::NarrowPhase);
+        stats.narrow_phase_queries += pairs.len();
+        let margins = &self.work.margins;
+        let manifolds = &mut self.work.manifolds;
+        manifolds.clear();
+        let boxes = broad.boxes();
+        manifolds.par_extend(
+            (0..bodies.len())
+                .into_par_iter()
+                .with_min_len(256)
+                .filter_map(|j| {
+                    let b = &bodies[j];
+                    let reaches = b.is_dynamic() && boxes[j].min.y - margins[j] <= 0.0;
+                    reaches.then(|| ground_manifold(j, b, &shapes[b.shape], margins[j]))?
+                }),
+        );
+        stats.ground_contacts = manifolds.len();
+        manifolds.par_extend(pairs.par_iter().with_min_len(32).filter_map(|&(i, j)| {
+            let (i, j) = (i as usize, j as usize);
+            let prediction = margins[i] + margins[j];
+            body_manifold((i, &bodies[i]), (j, &bodies[j]), shapes, prediction)
+        }));
+        stats.contacts = manifolds.len() - stats.ground_contacts;
+        for m in manifolds.iter() {
+            for p in m.points() {
+                stats.max_penetration = stats.max_penetration.max(-p.separation);
+            }
+        }
+    }
+
+    /// Solver bodies, start poses and energies, contact constraints and joint groups.
+    fn prepare(&mut self, ctx: &StepContext, scene: &Scene, substeps: &Substeps) {
+        let (bodies, constraints) = (&*scene.bodies, scene.constraints);
+        let work = &mut self.work;
+        work.bodies.clear();
+        work.bodies.extend(bodies.iter().map(SolverBody::new));
+        work.bodies.push(SolverBody::STATIC); // the ground
+        work.start.clear();
+        work.start
+            .extend(bodies.iter().map(|b| (b.position, b.orientation)));
+        let g = ctx.settings.gravity;
+        work.start_energy.clear();
+        work.start_energy.extend(bodies.iter().map(|b| {
+            if b.is_dynamic() {
+                restitution::energy(b, b.linear_velocity, b.angular_velocity, g)
+            } else {
+                0.0
+            }
+        }));
+        contact_solver::prepare(
+            &work.manifolds,
+            &work.start,
+            &work.bodies,
+            &self.contacts,
+            &substeps.contact,
+            (&mut work.contacts, &mut work.points),
+        );
+        if !self.blocks.fits(constraints, bodies) {
+            self.blocks = JointBlocks::new(constraints, bodies);
+            work.large_groups = self.blocks.large_group_constraints();
+        }
+        work.rows.clear();
+        work.rows.extend(joint_solver::prepare(
+            constraints,
+            &work.large_groups,
+            &self.joint_impulses,
+        ));
+    }
+
+    /// Half a kick of gravity, warm start, the soft pass, new poses, joints projected, the
+    /// other half kick, the relax pass.
+    fn substep(
+        &mut self,
+        ctx: &StepContext,
+        bodies: &mut [RigidBody],
+        substeps: &Substeps,
+        watch: &mut Stopwatch,
+    ) {
+        let (h, inv_h) = (substeps.h, substeps.inv_h);
+        let half_kick = 0.5 * h * ctx.settings.gravity;
+        let soft = substeps.joint_softness;
+        let w = &mut self.work;
+        watch.enter(Stage::Integrate);
+        kick(bodies, &mut w.bodies, half_kick);
+        watch.enter(Stage::Solve);
+        joint_solver::warm_start(&w.rows, bodies, &mut w.bodies);
+        contact_solver::warm_start(&w.contacts, &w.points, &mut w.bodies);
+        self.blocks
+            .solve_velocities(bodies, &mut w.bodies, inv_h, true);
+        joint_solver::solve(
+            &mut w.rows,
+            bodies,
+            &mut w.bodies,
+            soft,
+            inv_h,
+            true,
+            MAX_PUSH_SPEED,
+        );
+        contact_solver::solve(
+            &w.contacts,
+            &mut w.points,
+            &mut w.bodies,
+            inv_h,
+            true,
+            MAX_PUSH_SPEED,
+        );
+        watch.enter(Stage::Integrate);
+        integrate_positions(ctx, bodies, &mut w.bodies, &w.start, h);
+        watch.enter(Stage::Solve);
+        if self.blocks.project_positions(bodies, &w.bodies) {
+            update_deltas(bodies, &mut w.bodies, &w.start);
+        }
+        watch.enter(Stage::Integrate);
+        kick(bodies, &mut w.bodies, half_kick);
+        watch.enter(Stage::Solve);
+        self.blocks
+            .solve_velocities(bodies, &mut w.bodies, inv_h, false);
+        joint_solver::solve(
+            &mut w.rows,
+            bodies,
+            &mut w.bodies,
+            soft,
+            inv_h,
+            false,
+            MAX_PUSH_SPEED,
+        );
+        contact_solver::solve(
+            &w.contacts,
+            &mut w.points,
+            &mut w.bodies,
+            inv_h,
+            false,
+            MAX_PUSH_SPEED,
+        );
+    }
+
+    /// Restitution with its energy rule, velocities back into the bodies, impulses kept.
+    fn finish(&mut self, ctx: &StepContext, bodies: &mut [RigidBody], stats: &mut StepStats) {
+        let w = &mut self.work;
+        w.before_restitution.clone_from(&w.bodies);
+        restitution::apply(&w.contacts, &mut w.points, &mut w.bodies);
+        let rule = restitution::EnergyRule {
+            restitution: ctx.settings.restitution,
+            friction: ctx.settings.friction,
+            gravity: ctx.settings.gravity,
+        };
+        let contacts = restitution::Contacts {
+            manifolds: &w.manifolds,
+            constraints: &w.contacts,
+            points: &w.points,
+        };
+        restitution::settle_energy(
+            &contacts,
+            bodies,
+            &w.before_restitution,
+            &mut w.bodies,
+            &w.start_energy,
+            &rule,
+        );
+        for (body, sb) in bodies.iter_mut().zip(&w.bodies) {
+            if body.is_dynamic() {
+                body.linear_velocity = sb.linear_velocity;
+                body.angular_velocity = sb.angular_velocity;
+            }
+        }
+        self.contacts.store(&w.manifolds, &w.contacts, &w.points);
+        let count = w.rows.iter().map(|r| r.constraint + 1).max().unwrap_or(0);
+        self.joint_impulses.clear();
+        self.joint_impulses.resize(count, 0.0);
+        for r in &w.rows {
+            self.joint_impulses[r.constraint] = r.impulse;
+        }
+        stats.manifold_points = w.points.len();
+    }
+
+    /// The manifolds of the last step (for display).
+    pub fn manifolds(&self) -> &[Manifold] {
+        &self.work.manifolds
+    }
+}
+
+/// Poses from the solved velocities (by the world's rotation integrator), and each body's
+/// displacement since the step began for the contacts' separations.
+fn integrate_positions(
+    ctx: &StepContext,
+    bodies: &mut [RigidBody],
+    solver_bodies: &mut [SolverBody],
+    start: &[(DVec3, DQuat)],
+    h: f64,
+) {
+    let integrator = ctx.settings.rotation_integrator;
+    for ((body, sb), &(p0, q0)) in bodies.iter_mut().zip(solver_bodies.iter_mut()).zip(start) {
+        if !body.is_dynamic() {
+            continue;
+        }
+        body.linear_velocity = sb.linear_velocity;
+        body.angular_velocity = sb.angular_velocity;
+        integrate_pose(body, integrator, h, false);
+        // The angular-momentum integrator turns the angular velocity with the body.
+        sb.angular_velocity = body.angular_velocity;
+        sb.delta_position = body.position - p0;
+        sb.delta_rotation = manifold::delta_rotation(q0, body.orientation);
+    }
+}
+
+/// Adds `dv` (half a substep of gravity) to every movable body's velocity.
+fn kick(bodies: &[RigidBody], solver_bodies: &mut [SolverBody], dv: DVec3) {
+    for (sb, body) in solver_bodies.iter_mut().zip(bodies) {
+        if body.is_dynamic() {
+            sb.linear_velocity += dv;
+        }
+    }
+}
+
+fn update_deltas(bodies: &[RigidBody], solver_bodies: &mut [SolverBody], start: &[(DVec3, DQuat)]) {
+    for ((body, sb), &(p0, q0)) in bodies.iter().zip(solver_bodies.iter_mut()).zip(start) {
+        if body.is_dynamic() {
+            sb.delta_position = body.position - p0;
+            sb.delta_rotation = manifold::delta_rotation(q0, body.orientation);
+        }
+    }
+}
