@@ -24,10 +24,16 @@ pub enum Scenario {
     Tower,
     Chains,
     MixedEnergy,
+    /// A box on a 20 degree incline with mu = 0.5: static friction holds it.
+    Slope20,
+    /// The same at 30 degrees: it slides with acceleration g (sin a - mu cos a).
+    Slope30,
+    /// pile-200 with friction, dropped: it should come to rest without sinking in.
+    PileRest,
 }
 
 impl Scenario {
-    pub const ALL: [Scenario; 8] = [
+    pub const ALL: [Scenario; 11] = [
         Scenario::FreeFall,
         Scenario::SpinEllipsoid,
         Scenario::SpinLongOctahedron,
@@ -36,6 +42,9 @@ impl Scenario {
         Scenario::Tower,
         Scenario::Chains,
         Scenario::MixedEnergy,
+        Scenario::Slope20,
+        Scenario::Slope30,
+        Scenario::PileRest,
     ];
 
     pub fn name(self) -> &'static str {
@@ -48,6 +57,9 @@ impl Scenario {
             Scenario::Tower => "tower",
             Scenario::Chains => "chains",
             Scenario::MixedEnergy => "mixed_energy",
+            Scenario::Slope20 => "slope_20",
+            Scenario::Slope30 => "slope_30",
+            Scenario::PileRest => "pile_rest",
         }
     }
 
@@ -61,6 +73,9 @@ impl Scenario {
             Scenario::Tower => "drift",
             Scenario::Chains => "worst_relative_violation",
             Scenario::MixedEnergy => "energy_drift",
+            Scenario::Slope20 => "displacement",
+            Scenario::Slope30 => "acceleration_error",
+            Scenario::PileRest => "max_speed",
         }
     }
 
@@ -72,6 +87,8 @@ impl Scenario {
             Scenario::Bounce => 12.0,
             Scenario::Pendulum => 20.0,
             Scenario::Tower | Scenario::Chains | Scenario::MixedEnergy => 10.0,
+            Scenario::Slope20 | Scenario::Slope30 => 5.0,
+            Scenario::PileRest => 10.0,
         }
     }
 }
@@ -198,6 +215,9 @@ pub fn run_with(scenario: Scenario, settings: &Settings, engine: Engine) -> Outc
         Scenario::Tower => tower(run),
         Scenario::Chains => chains(run),
         Scenario::MixedEnergy => mixed_energy(run),
+        Scenario::Slope20 => slope(run, 20.0),
+        Scenario::Slope30 => slope(run, 30.0),
+        Scenario::PileRest => pile_rest(run),
     };
     Outcome {
         wall_per_sim_second: wall,
@@ -579,6 +599,110 @@ fn mixed_energy(run: &Run) -> Measured {
         vec![
             m("energy_drift", worst),
             m("final_energy_ratio", world.total_energy() / e0),
+        ],
+        finite,
+    )
+}
+
+/// Friction of the slope scenarios.
+const SLOPE_FRICTION: f64 = 0.5;
+
+/// A 2 x 1 x 1.5 box resting on a fixed incline of `degrees` (friction 0.5, no bounce), high
+/// above the ground. Held by static friction below atan(0.5) = 26.6 degrees: displacement
+/// after 5 s; above it slides with `g (sin a - mu cos a)`: relative error of the acceleration
+/// measured between 1 s and 5 s.
+fn slope(run: &Run, degrees: f64) -> Measured {
+    let settings = Settings {
+        friction: SLOPE_FRICTION,
+        restitution: 0.0,
+        ..run.settings.clone()
+    };
+    let angle = degrees.to_radians();
+    let tilt = DQuat::from_rotation_z(angle);
+    let (down_slope, up) = (tilt * DVec3::NEG_X, tilt * DVec3::Y);
+    let incline = shape(&assets::cuboid(DVec3::new(40.0, 1.0, 4.0)));
+    let block = shape(&assets::cuboid(DVec3::new(1.0, 0.5, 0.75)));
+    let base = DVec3::new(0.0, 60.0, 0.0);
+    let bodies = vec![
+        RigidBody::on_shape(&incline, 0, 100.0, true, base, tilt),
+        RigidBody::on_shape(&block, 1, 100.0, false, base + 1.5 * up, tilt),
+    ];
+    let start = bodies[1].position;
+    let g = settings.gravity.length();
+    let mut world = World::new(
+        vec![incline, block],
+        vec!["incline".into(), "box".into()],
+        bodies,
+        Vec::new(),
+        settings,
+    );
+    let duration = Scenario::Slope20.duration();
+    let (mut early_speed, mut early_time) = (0.0, 0.0);
+    let wall = simulate(run.engine, &mut world, duration, |w, _| {
+        if early_time == 0.0 && w.time >= 1.0 - 1e-9 {
+            (early_speed, early_time) = (w.bodies[1].linear_velocity.dot(down_slope), w.time);
+        }
+    });
+    let b = &world.bodies[1];
+    let displacement = (b.position - start).length();
+    let expected = g * (angle.sin() - SLOPE_FRICTION * angle.cos());
+    let measured = (b.linear_velocity.dot(down_slope) - early_speed) / (world.time - early_time);
+    let finite = world.all_finite();
+    let metrics = if expected > 0.0 {
+        vec![
+            m(
+                "acceleration_error",
+                ((measured - expected) / expected).abs(),
+            ),
+            m("acceleration", measured),
+            m("expected_acceleration", expected),
+            m("displacement", displacement),
+        ]
+    } else {
+        vec![m("displacement", displacement), m("acceleration", measured)]
+    };
+    (wall, metrics, finite)
+}
+
+/// pile-200 (boxes, tetrahedra, octahedra dropped into a walled bin) with friction 0.5 and
+/// restitution 0.2, 10 s: the largest speed of any body at the end, and the deepest penetration
+/// then relative to the smallest body's size.
+fn pile_rest(run: &Run) -> Measured {
+    let settings = Settings {
+        friction: SLOPE_FRICTION,
+        restitution: 0.2,
+        ..run.settings.clone()
+    };
+    let mut world = crate::scene::generate::pile(200, settings);
+    let wall = simulate(
+        run.engine,
+        &mut world,
+        Scenario::PileRest.duration(),
+        |_, _| {},
+    );
+    let size = world
+        .bodies
+        .iter()
+        .filter(|b| !b.fixed)
+        .map(|b| 2.0 * world.shapes[b.shape].local_box_half_extents.min_element())
+        .fold(f64::INFINITY, f64::min);
+    let speed = world
+        .bodies
+        .iter()
+        .filter(|b| !b.fixed)
+        .map(|b| b.linear_velocity.length())
+        .fold(0.0, f64::max);
+    let penetration = world
+        .current_contacts()
+        .iter()
+        .map(|(_, _, c)| c.depth)
+        .fold(0.0, f64::max);
+    let finite = world.all_finite();
+    (
+        wall,
+        vec![
+            m("max_speed", speed),
+            m("max_penetration_relative", penetration / size),
         ],
         finite,
     )

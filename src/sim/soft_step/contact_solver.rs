@@ -1,16 +1,20 @@
-//! Contact constraints of the soft-step solver: per manifold point a normal impulse (clamped
-//! non-negative, soft position correction, speculative when apart) and Coulomb friction in two
-//! tangent directions clamped to the disc `mu * normal impulse`; accumulated impulses are
-//! warm-started from the previous step by feature key.
+//! Contact constraints of the soft-step solver. Each manifold point has a normal impulse,
+//! clamped non-negative, corrected softly when penetrating and speculative when apart; friction
+//! acts per manifold, as Rapier's "simplified" model does: a tangential impulse in two
+//! directions at the patch's centre, clamped to the disc `mu` times the points' total normal
+//! impulse, and a twist impulse about the normal clamped to the same times the patch's radius.
+//! One friction anchor per patch has no points to rock between (per-point friction lets a box
+//! on an incline walk down it a point at a time). Impulses are warm-started from the previous
+//! step: normal ones by feature key, friction by body pair.
 
-use super::manifold::{GROUND, Manifold};
+use super::manifold::{GROUND, MAX_POINTS, Manifold, ManifoldPoint};
 use super::softness::Softness;
 use super::solver_body::{SolverBody, pair_mut};
-use glam::DVec3;
+use glam::{DQuat, DVec3};
 
-/// One direction `d` of a contact point's Jacobian, kept for the step: the angular parts
-/// `r_i x d` and the angular response `I_i^-1 (r_i x d)` to a unit impulse (the arms and
-/// inertias are those of the step's start), so a row costs a few dot products.
+/// One direction `d` of a contact's Jacobian, kept for the step: the angular parts `r_i x d`
+/// and the angular response `I_i^-1 (r_i x d)` to a unit impulse (the arms and inertias are
+/// those of the step's start), so a row costs a few dot products.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Direction {
     ang1: DVec3,
@@ -59,25 +63,41 @@ pub struct ContactPoint {
     /// Arms from the centres of mass to the point, world space, at the start of the step.
     pub r1: DVec3,
     pub r2: DVec3,
-    /// The Jacobian rows along the normal and the two tangents.
+    /// The Jacobian row along the normal, and its effective mass.
     pub along_normal: Direction,
-    pub along_tangents: [Direction; 2],
+    pub normal_mass: f64,
     /// Separation at the start of the step (negative: penetration).
     pub separation: f64,
-    pub normal_mass: f64,
-    pub tangent_mass: [f64; 2],
-    /// Accumulated impulses.
+    /// Accumulated normal impulse.
     pub normal_impulse: f64,
     /// What the restitution pass added to the normal impulse (not carried to the next step:
     /// warm starting it would push the bodies apart again in every substep).
     pub restitution_impulse: f64,
-    pub tangent_impulse: [f64; 2],
     /// Largest normal impulse of the step: the point really touched.
     pub max_normal_impulse: f64,
     /// Energy of the approach along the normal at the moment of impact (see
     /// [`impact_energy`]), recorded by the substep that stopped the approach; zero when none.
     pub impact_energy: f64,
     pub key: u64,
+}
+
+/// Friction of one manifold, anchored at its patch's centre.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Friction {
+    pub coefficient: f64,
+    pub tangents: [DVec3; 2],
+    along_tangents: [Direction; 2],
+    tangent_mass: [f64; 2],
+    /// Accumulated tangential impulses.
+    pub tangent_impulse: [f64; 2],
+    /// Angular responses `I_i^-1 n` to a unit twist, and the twist's effective mass.
+    twist_inv1: DVec3,
+    twist_inv2: DVec3,
+    twist_mass: f64,
+    /// Mean distance of the points from the patch centre: the twist's lever.
+    pub twist_radius: f64,
+    /// Accumulated twist impulse about the normal.
+    pub twist_impulse: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -87,8 +107,7 @@ pub struct ContactConstraint {
     pub body2: usize,
     /// From body 1 to body 2.
     pub normal: DVec3,
-    pub tangents: [DVec3; 2],
-    pub friction: f64,
+    pub friction: Friction,
     pub restitution: f64,
     /// Impacts slower than this do not bounce.
     pub restitution_threshold: f64,
@@ -100,30 +119,39 @@ pub struct ContactConstraint {
     pub count: usize,
 }
 
-/// What one manifold point carries to the next step.
+/// What one manifold carries to the next step.
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct CachedPoint {
-    key: u64,
-    normal_impulse: f64,
+struct CachedManifold {
     /// The friction impulse as a world vector, so a turned tangent basis does not turn it.
-    friction_impulse: DVec3,
+    friction: DVec3,
+    twist: f64,
+    /// (feature key, normal impulse) of each point.
+    points: [(u64, f64); MAX_POINTS],
+    count: usize,
 }
 
-/// Impulses of last step's manifold points, sorted by body pair (one flat list: no allocation
-/// per pair).
+impl CachedManifold {
+    fn normal_impulse(&self, key: u64) -> f64 {
+        self.points[..self.count]
+            .iter()
+            .find(|(k, _)| *k == key)
+            .map_or(0.0, |(_, impulse)| *impulse)
+    }
+}
+
+/// Impulses of last step's manifolds, sorted by body pair (one flat list).
 #[derive(Debug, Clone, Default)]
 pub struct ContactCache {
-    entries: Vec<((usize, usize), CachedPoint)>,
+    entries: Vec<((usize, usize), CachedManifold)>,
 }
 
 impl ContactCache {
-    fn lookup(&self, pair: (usize, usize), key: u64) -> Option<&CachedPoint> {
-        let first = self.entries.partition_point(|(p, _)| *p < pair);
-        self.entries[first..]
-            .iter()
-            .take_while(|(p, _)| *p == pair)
+    fn lookup(&self, pair: (usize, usize)) -> Option<&CachedManifold> {
+        let k = self.entries.partition_point(|(p, _)| *p < pair);
+        self.entries
+            .get(k)
+            .filter(|(p, _)| *p == pair)
             .map(|(_, c)| c)
-            .find(|c| c.key == key)
     }
 
     /// Keeps this step's impulses (and forgets pairs no longer in contact).
@@ -135,29 +163,54 @@ impl ContactCache {
     ) {
         self.entries.clear();
         for (m, c) in manifolds.iter().zip(constraints) {
-            for p in &points[c.first..c.first + c.count] {
-                let friction_impulse =
-                    p.tangent_impulse[0] * c.tangents[0] + p.tangent_impulse[1] * c.tangents[1];
-                self.entries.push((
-                    (m.body1, m.body2),
-                    CachedPoint {
-                        key: p.key,
-                        normal_impulse: p.normal_impulse,
-                        friction_impulse,
-                    },
-                ));
+            let f = &c.friction;
+            let mut cached = CachedManifold {
+                friction: f.tangent_impulse[0] * f.tangents[0]
+                    + f.tangent_impulse[1] * f.tangents[1],
+                twist: f.twist_impulse,
+                points: [(0, 0.0); MAX_POINTS],
+                count: c.count,
+            };
+            let kept = &points[c.first..c.first + c.count];
+            for (slot, p) in cached.points.iter_mut().zip(kept) {
+                *slot = (p.key, p.normal_impulse);
             }
+            self.entries.push(((m.body1, m.body2), cached));
         }
         self.entries.sort_by_key(|(pair, _)| *pair);
     }
 
-    /// Number of points remembered.
+    /// Number of manifolds remembered.
     pub fn len(&self) -> usize {
         self.entries.len()
     }
 
     pub fn is_empty(&self) -> bool {
         self.entries.is_empty()
+    }
+}
+
+/// Which pass of the solver runs. The velocities are half-step ones during the substeps
+/// (symplectic Euler between the half kicks of velocity Verlet).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Pass {
+    /// Soft position correction, at the poses the substep starts from.
+    Soft,
+    /// Rigid, at the poses the substep ends at.
+    Relax,
+    /// Rigid, after the step's last half kick: the velocities are the step's end.
+    Final,
+}
+
+impl Pass {
+    /// What to subtract from a half-step velocity to get the velocity at the poses this pass
+    /// sees, for relative normal acceleration `a` over substep `h`.
+    fn to_synchronised(self, a: f64, h: f64) -> f64 {
+        match self {
+            Pass::Soft => 0.5 * a * h,
+            Pass::Relax => -0.5 * a * h,
+            Pass::Final => 0.0,
+        }
     }
 }
 
@@ -174,7 +227,7 @@ pub fn tangent_basis(n: DVec3) -> [DVec3; 2] {
 }
 
 /// The contact's share of the step: `softness` for the biased pass, the restitution, friction
-/// and gravity the bodies feel, and the substep length.
+/// and gravity the bodies feel.
 pub struct ContactParams {
     pub softness: Softness,
     pub static_softness: Softness,
@@ -186,14 +239,12 @@ pub struct ContactParams {
 
 /// The energy of the approach along the normal per unit effective mass, `E = v^2/2 - a s`
 /// for separation `s` (clamped at zero), normal velocity `v` and the relative normal
-/// acceleration `a` that gravity gives the bodies. The substeps kick velocities by half a
-/// substep of gravity before and after moving the bodies (velocity Verlet), which is exact
-/// under constant acceleration: measured in the substep that stops the approach, with the gap
-/// still open then, `E` is what the approach carries at the moment of impact, so a bounce that
-/// leaves `e^2 E` gives apex ratios of exactly `e^2` at any step (a bounce from the velocity at
-/// the start of the step loses `a s` to the gap, which grows with dt). Measured from the
-/// manifold's velocities before its impulses, points that touch together bounce together:
-/// the restitution then reflects the compression, which keeps energy (e = 1).
+/// acceleration `a` that gravity gives the bodies. The substeps integrate by velocity Verlet,
+/// exact under constant acceleration: measured in the substep that stops the approach, with the
+/// gap still open then, `E` is what the approach carries at the moment of impact, so a bounce
+/// that leaves `e^2 E` gives apex ratios of exactly `e^2` at any step (a bounce from the
+/// velocity at the start of the step loses `a s` to the gap, which grows with dt). Measured from
+/// the manifold's velocities before its impulses, points that touch together bounce together.
 pub fn impact_energy(separation: f64, normal_velocity: f64, normal_acceleration: f64) -> f64 {
     0.5 * normal_velocity * normal_velocity - normal_acceleration * separation.max(0.0)
 }
@@ -205,11 +256,49 @@ pub fn bounce_velocity(energy: f64, restitution: f64, separation: f64, a: f64) -
     if twice > 0.0 { twice.sqrt() } else { 0.0 }
 }
 
+/// The friction of a manifold whose points are `points`, anchored at their centre; body 1's
+/// centre of mass is None for the ground.
+fn friction_at(
+    points: &[ManifoldPoint],
+    (b1, x1): (&SolverBody, Option<DVec3>),
+    (b2, x2): (&SolverBody, DVec3),
+    n: DVec3,
+    coefficient: f64,
+    cached: Option<&CachedManifold>,
+) -> Friction {
+    let count = points.len().max(1) as f64;
+    let centre = points.iter().map(|p| p.point).sum::<DVec3>() / count;
+    let twist_radius = points
+        .iter()
+        .map(|p| (p.point - centre).length())
+        .sum::<f64>()
+        / count;
+    let (r1, r2) = (x1.map_or(DVec3::ZERO, |x| centre - x), centre - x2);
+    let tangents = tangent_basis(n);
+    let (t1, m1) = Direction::new(b1, r1, b2, r2, tangents[0]);
+    let (t2, m2) = Direction::new(b1, r1, b2, r2, tangents[1]);
+    let (twist_inv1, twist_inv2) = (b1.inverse_inertia * n, b2.inverse_inertia * n);
+    let k = n.dot(twist_inv1) + n.dot(twist_inv2);
+    let warm = cached.map_or(DVec3::ZERO, |c| c.friction);
+    Friction {
+        coefficient,
+        tangents,
+        along_tangents: [t1, t2],
+        tangent_mass: [m1, m2],
+        tangent_impulse: [warm.dot(tangents[0]), warm.dot(tangents[1])],
+        twist_inv1,
+        twist_inv2,
+        twist_mass: if k > 0.0 { 1.0 / k } else { 0.0 },
+        twist_radius,
+        twist_impulse: cached.map_or(0.0, |c| c.twist),
+    }
+}
+
 /// Builds the contact constraints of this step's manifolds into `constraints` and `points`
-/// (cleared first), warm-started from `cache`; `positions[i]` is body i's centre of mass.
+/// (cleared first), warm-started from `cache`; `poses[i].0` is body i's centre of mass.
 pub fn prepare(
     manifolds: &[Manifold],
-    positions: &[(DVec3, glam::DQuat)],
+    poses: &[(DVec3, DQuat)],
     bodies: &[SolverBody],
     cache: &ContactCache,
     params: &ContactParams,
@@ -223,62 +312,46 @@ pub fn prepare(
         let j = m.body2;
         let (b1, b2) = (&bodies[i], &bodies[j]);
         let n = m.normal;
-        let tangents = tangent_basis(n);
-        let acceleration = |b: &SolverBody| {
+        let gravity_on = |b: &SolverBody| {
             if b.inverse_mass > 0.0 {
                 params.gravity
             } else {
                 DVec3::ZERO
             }
         };
-        let normal_acceleration = n.dot(acceleration(b2) - acceleration(b1));
         let softness = if b1.inverse_mass == 0.0 || b2.inverse_mass == 0.0 {
             params.static_softness
         } else {
             params.softness
         };
+        let cached = cache.lookup((m.body1, m.body2));
+        let (x1, x2) = ((i != ground).then(|| poses[i].0), poses[j].0);
         let first = points.len();
         for mp in m.points() {
-            let r1 = if i == ground {
-                DVec3::ZERO
-            } else {
-                mp.point - positions[i].0
-            };
-            let r2 = mp.point - positions[j].0;
+            let (r1, r2) = (x1.map_or(DVec3::ZERO, |x| mp.point - x), mp.point - x2);
             let (along_normal, normal_mass) = Direction::new(b1, r1, b2, r2, n);
-            let (t1, tangent_mass1) = Direction::new(b1, r1, b2, r2, tangents[0]);
-            let (t2, tangent_mass2) = Direction::new(b1, r1, b2, r2, tangents[1]);
-            let cached = cache.lookup((m.body1, m.body2), mp.key);
             points.push(ContactPoint {
                 r1,
                 r2,
                 along_normal,
-                along_tangents: [t1, t2],
-                separation: mp.separation,
                 normal_mass,
-                tangent_mass: [tangent_mass1, tangent_mass2],
-                normal_impulse: cached.map_or(0.0, |c| c.normal_impulse),
+                separation: mp.separation,
+                normal_impulse: cached.map_or(0.0, |c| c.normal_impulse(mp.key)),
                 restitution_impulse: 0.0,
-                tangent_impulse: cached.map_or([0.0; 2], |c| {
-                    [
-                        c.friction_impulse.dot(tangents[0]),
-                        c.friction_impulse.dot(tangents[1]),
-                    ]
-                }),
                 max_normal_impulse: 0.0,
                 impact_energy: 0.0,
                 key: mp.key,
             });
         }
+        let friction = friction_at(m.points(), (b1, x1), (b2, x2), n, params.friction, cached);
         constraints.push(ContactConstraint {
             body1: i,
             body2: j,
             normal: n,
-            tangents,
-            friction: params.friction,
+            friction,
             restitution: params.restitution,
             restitution_threshold: params.restitution_threshold,
-            normal_acceleration,
+            normal_acceleration: n.dot(gravity_on(b2) - gravity_on(b1)),
             softness,
             first,
             count: points.len() - first,
@@ -296,96 +369,119 @@ pub fn warm_start(
         let (b1, b2) = pair_mut(bodies, c.body1, c.body2);
         for p in &points[c.first..c.first + c.count] {
             p.along_normal.apply(c.normal, p.normal_impulse, b1, b2);
-            for k in 0..2 {
-                p.along_tangents[k].apply(c.tangents[k], p.tangent_impulse[k], b1, b2);
-            }
         }
+        let f = &c.friction;
+        for k in 0..2 {
+            f.along_tangents[k].apply(f.tangents[k], f.tangent_impulse[k], b1, b2);
+        }
+        f.apply_twist(f.twist_impulse, b1, b2);
     }
 }
 
-/// One Gauss-Seidel pass over the contacts. With `use_bias` penetration is corrected softly
-/// (at most `max_push` speed); without (the relax pass) the velocities are made rigid. A point
-/// still apart may close its gap within the substep but no more (speculative contact).
+/// One Gauss-Seidel pass over the contacts. In the soft pass penetration is corrected softly
+/// (at most `max_push` speed); in the others the velocities are made rigid. A point still apart
+/// may close its gap within the substep but no more (speculative contact).
 pub fn solve(
-    constraints: &[ContactConstraint],
+    constraints: &mut [ContactConstraint],
     points: &mut [ContactPoint],
     bodies: &mut [SolverBody],
     inv_h: f64,
-    use_bias: bool,
+    pass: Pass,
     max_push: f64,
 ) {
-    for c in constraints {
+    for c in constraints.iter_mut() {
         let (b1, b2) = pair_mut(bodies, c.body1, c.body2);
-        let n = c.normal;
-        let soft = if use_bias {
-            c.softness
-        } else {
-            Softness::RIGID
-        };
         let contact_points = &mut points[c.first..c.first + c.count];
-        // The normal velocities before any of this manifold's impulses: the approach speeds of
-        // points that touch together.
-        let mut approach = [0.0; super::manifold::MAX_POINTS];
-        for (v, p) in approach.iter_mut().zip(contact_points.iter()) {
-            *v = p.along_normal.velocity(n, b1, b2);
-        }
-        for (p, &approach) in contact_points.iter_mut().zip(&approach) {
-            let moved = b2.point_displacement(p.r2) - b1.point_displacement(p.r1);
-            let s = p.separation + n.dot(moved);
-            let (bias, mass_scale, impulse_scale) = if s > 0.0 {
-                (s * inv_h, 1.0, 0.0)
-            } else if use_bias {
-                (
-                    (soft.bias_rate * s).max(-max_push),
-                    soft.mass_scale,
-                    soft.impulse_scale,
-                )
-            } else {
-                (0.0, 1.0, 0.0)
-            };
-            let vn = p.along_normal.velocity(n, b1, b2);
-            let impulse =
-                -p.normal_mass * mass_scale * (vn + bias) - impulse_scale * p.normal_impulse;
-            let total = (p.normal_impulse + impulse).max(0.0);
-            let delta = total - p.normal_impulse;
-            p.normal_impulse = total;
-            p.max_normal_impulse = p.max_normal_impulse.max(total);
-            if total > 0.0 && approach < 0.0 {
-                // The biased pass comes after the first half kick of gravity: undo it to measure
-                // the state at the substep boundary, where the energy is exactly invariant.
-                let a = c.normal_acceleration;
-                let kick = if use_bias { 0.5 * a / inv_h } else { 0.0 };
-                let energy = impact_energy(s, approach - kick, a);
-                p.impact_energy = p.impact_energy.max(energy);
-            }
-            p.along_normal.apply(n, delta, b1, b2);
-        }
-        for p in contact_points.iter_mut() {
-            solve_friction(c, p, b1, b2);
-        }
+        solve_normals(c, contact_points, (b1, b2), inv_h, pass, max_push);
+        let total: f64 = contact_points.iter().map(|p| p.normal_impulse).sum();
+        c.friction.solve(c.normal, total, b1, b2);
     }
 }
 
-/// Coulomb friction at one point: both tangent impulses at once, clamped to the disc of radius
-/// `mu` times the normal impulse.
-fn solve_friction(
+/// The normal impulses of one manifold's points.
+fn solve_normals(
     c: &ContactConstraint,
-    p: &mut ContactPoint,
-    b1: &mut SolverBody,
-    b2: &mut SolverBody,
+    points: &mut [ContactPoint],
+    (b1, b2): (&mut SolverBody, &mut SolverBody),
+    inv_h: f64,
+    pass: Pass,
+    max_push: f64,
 ) {
-    let old = p.tangent_impulse;
-    let mut new = [0, 1]
-        .map(|k| old[k] - p.tangent_mass[k] * p.along_tangents[k].velocity(c.tangents[k], b1, b2));
-    let limit = c.friction * p.normal_impulse;
-    let length = (new[0] * new[0] + new[1] * new[1]).sqrt();
-    if length > limit {
-        let scale = if length > 0.0 { limit / length } else { 0.0 };
-        new = [new[0] * scale, new[1] * scale];
+    let n = c.normal;
+    let use_bias = pass == Pass::Soft;
+    let soft = if use_bias {
+        c.softness
+    } else {
+        Softness::RIGID
+    };
+    // The normal velocities before any of this manifold's impulses: the approach speeds of
+    // points that touch together.
+    let mut approach = [0.0; MAX_POINTS];
+    for (v, p) in approach.iter_mut().zip(points.iter()) {
+        *v = p.along_normal.velocity(n, b1, b2);
     }
-    p.tangent_impulse = new;
-    for k in 0..2 {
-        p.along_tangents[k].apply(c.tangents[k], new[k] - old[k], b1, b2);
+    for (p, &approach) in points.iter_mut().zip(&approach) {
+        let moved = b2.point_displacement(p.r2) - b1.point_displacement(p.r1);
+        let s = p.separation + n.dot(moved);
+        let (bias, mass_scale, impulse_scale) = if s > 0.0 {
+            (s * inv_h, 1.0, 0.0)
+        } else if use_bias {
+            (
+                (soft.bias_rate * s).max(-max_push),
+                soft.mass_scale,
+                soft.impulse_scale,
+            )
+        } else {
+            (0.0, 1.0, 0.0)
+        };
+        let vn = p.along_normal.velocity(n, b1, b2);
+        let impulse = -p.normal_mass * mass_scale * (vn + bias) - impulse_scale * p.normal_impulse;
+        let total = (p.normal_impulse + impulse).max(0.0);
+        let delta = total - p.normal_impulse;
+        p.normal_impulse = total;
+        p.max_normal_impulse = p.max_normal_impulse.max(total);
+        if total > 0.0 && approach < 0.0 {
+            // Measured at the poses of this pass with the velocity there, where the energy is
+            // exactly invariant.
+            let a = c.normal_acceleration;
+            let synchronised = approach - pass.to_synchronised(a, 1.0 / inv_h);
+            p.impact_energy = p.impact_energy.max(impact_energy(s, synchronised, a));
+        }
+        p.along_normal.apply(n, delta, b1, b2);
+    }
+}
+
+impl Friction {
+    /// Coulomb friction at the anchor: both tangent impulses at once, clamped to the disc of
+    /// radius `mu` times the manifold's normal impulse `total`; then the twist, clamped to the
+    /// same times the patch radius.
+    fn solve(&mut self, n: DVec3, total: f64, b1: &mut SolverBody, b2: &mut SolverBody) {
+        let limit = self.coefficient * total;
+        let old = self.tangent_impulse;
+        let mut new = [0, 1].map(|k| {
+            let v = self.along_tangents[k].velocity(self.tangents[k], b1, b2);
+            old[k] - self.tangent_mass[k] * v
+        });
+        let length = (new[0] * new[0] + new[1] * new[1]).sqrt();
+        if length > limit {
+            let scale = if length > 0.0 { limit / length } else { 0.0 };
+            new = [new[0] * scale, new[1] * scale];
+        }
+        self.tangent_impulse = new;
+        for k in 0..2 {
+            self.along_tangents[k].apply(self.tangents[k], new[k] - old[k], b1, b2);
+        }
+        let spin = n.dot(b2.angular_velocity - b1.angular_velocity);
+        let twist_limit = limit * self.twist_radius;
+        let twist = (self.twist_impulse - self.twist_mass * spin).clamp(-twist_limit, twist_limit);
+        self.apply_twist(twist - self.twist_impulse, b1, b2);
+        self.twist_impulse = twist;
+    }
+
+    /// Applies a twist impulse about the normal to body 2 and its opposite to body 1.
+    fn apply_twist(&self, impulse: f64, b1: &mut SolverBody, b2: &mut SolverBody) {
+        b1.angular_velocity -= impulse * self.twist_inv1;
+        b2.angular_velocity += impulse * self.twist_inv2;
     }
 }
 
