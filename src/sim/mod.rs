@@ -10,6 +10,7 @@ pub mod body;
 pub mod broad_phase;
 pub mod constraint;
 pub mod coursework;
+pub mod grab;
 pub mod grid;
 pub mod integrate;
 pub mod narrow_phase;
@@ -24,7 +25,8 @@ pub mod world;
 
 pub use body::RigidBody;
 pub use constraint::DistanceConstraint;
+pub use grab::Grab;
 pub use settings::{Choice, Settings};
 pub use shape::{Shape, TetMesh};
 pub use stats::{Stage, StepStats};
-pub use world::World;
+pub use world::{World, WorldState};

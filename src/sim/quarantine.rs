@@ -21,6 +21,10 @@ impl Quarantine {
         }
     }
 
+    pub fn heap_bytes(&self) -> usize {
+        self.last_good.capacity() * std::mem::size_of::<(DVec3, DQuat)>()
+    }
+
     /// Freezes the bodies that blew up since the last check; returns their indices.
     pub fn check(&mut self, bodies: &mut [RigidBody], frozen: &mut Vec<usize>) {
         for (index, body) in bodies.iter_mut().enumerate() {

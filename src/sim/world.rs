@@ -9,6 +9,7 @@ use super::coursework::contact_stage::{
     Bodies, ContactStage, contact_between, resolve_ground_contacts,
 };
 use super::coursework::schedule::solve_constraints;
+use super::grab::Grab;
 use super::integrate::integrate_bodies;
 use super::narrow_phase::{Contact, ground_contact};
 use super::quarantine::Quarantine;
@@ -33,6 +34,8 @@ pub struct World {
     pub step_count: u64,
     /// Notes from loading (ignored constraints, ...), for the user.
     pub warnings: Vec<String>,
+    /// A point of a body pulled towards a target (the viewer's mouse drag), by both solvers.
+    pub grab: Option<Grab>,
     /// `constraints_by_body[b]`: the constraints on body b.
     constraints_by_body: Vec<Vec<u32>>,
     broad_phase: BroadPhase,
@@ -69,6 +72,7 @@ impl World {
             time: 0.0,
             step_count: 0,
             warnings: Vec::new(),
+            grab: None,
             constraints_by_body,
         }
     }
@@ -113,6 +117,7 @@ impl World {
             bodies: &mut self.bodies,
             shapes: &self.shapes,
             constraints: &self.constraints,
+            grab: self.grab.as_ref(),
         };
         self.soft_step
             .step(ctx, scene, &mut self.broad_phase, &mut watch, &mut stats);
@@ -130,6 +135,9 @@ impl World {
         let mut watch = Stopwatch::new();
         watch.enter(Stage::Integrate);
         integrate_bodies(&mut self.bodies, &ctx.settings, ctx.dt);
+        if let Some(grab) = &self.grab {
+            grab.apply(&mut self.bodies, ctx.dt);
+        }
         let bodies = Bodies {
             bodies: &mut self.bodies,
             shapes: &self.shapes,
@@ -160,6 +168,26 @@ impl World {
             .check(&mut self.bodies, &mut stats.quarantined);
         stats.timings = watch.finish();
         stats
+    }
+
+    /// Everything a later step depends on, to come back to it exactly ([`World::restore`]).
+    pub fn snapshot(&self) -> WorldState {
+        WorldState {
+            bodies: self.bodies.clone(),
+            time: self.time,
+            step_count: self.step_count,
+            soft_step: self.soft_step.carried(),
+            quarantine: self.quarantine.clone(),
+        }
+    }
+
+    /// Back to a snapshot of this world: the steps after it repeat bit for bit.
+    pub fn restore(&mut self, state: &WorldState) {
+        self.bodies.clone_from(&state.bodies);
+        self.time = state.time;
+        self.step_count = state.step_count;
+        self.soft_step.restore(&state.soft_step);
+        self.quarantine.clone_from(&state.quarantine);
     }
 
     /// Current world-space vertices of one body (the coursework's `currV`), computed on demand.
@@ -233,11 +261,64 @@ impl World {
         out
     }
 
+    /// Contact points to draw, as (point, unit normal): for the coursework solver the contacts
+    /// at the current poses; for the soft step the points of the last step's manifolds that
+    /// touch or are about to (within 0.01 units).
+    pub fn display_contacts(&self) -> Vec<(DVec3, DVec3)> {
+        match self.settings.solver {
+            Solver::Coursework => self
+                .current_contacts()
+                .into_iter()
+                .map(|(_, _, c)| (c.point2, c.normal))
+                .collect(),
+            Solver::SoftStep => self
+                .soft_step
+                .manifolds()
+                .iter()
+                .flat_map(|m| {
+                    m.points()
+                        .iter()
+                        .filter(|p| p.separation <= 0.01)
+                        .map(move |p| (p.point, m.normal))
+                })
+                .collect(),
+        }
+    }
+
     /// World boxes of all bodies (computed from poses).
     pub fn body_aabbs(&self) -> Vec<Aabb> {
         self.bodies
             .iter()
             .map(|b| body_aabb(b, &self.shapes[b.shape]))
             .collect()
+    }
+}
+
+/// A world's state at one step: poses, velocities, time, and what the solvers carry from one
+/// step to the next (warm-start impulses, last finite poses).
+#[derive(Debug, Clone)]
+pub struct WorldState {
+    bodies: Vec<RigidBody>,
+    time: f64,
+    step_count: u64,
+    soft_step: super::soft_step::Carried,
+    quarantine: Quarantine,
+}
+
+impl WorldState {
+    /// Simulated seconds at this state.
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    pub fn step_count(&self) -> u64 {
+        self.step_count
+    }
+
+    /// Approximate heap bytes the snapshot holds (for bounding a history by memory).
+    pub fn heap_bytes(&self) -> usize {
+        self.bodies.capacity() * std::mem::size_of::<RigidBody>()
+            + self.soft_step.heap_bytes()
+            + self.quarantine.heap_bytes()
     }
 }

@@ -79,12 +79,11 @@ pub fn contact_markers(lines: &mut Vec<LineVertex>, world: &World, scene_scale: 
     let point_color = with_alpha(palette::linear([1.0, 0.95, 0.2]), 1.0);
     let normal_color = with_alpha(palette::linear([1.0, 0.45, 0.1]), 1.0);
     let s = 0.015 * scene_scale;
-    for (_, _, contact) in world.current_contacts() {
-        let p = contact.point2;
+    for (p, normal) in world.display_contacts() {
         for axis in [DVec3::X, DVec3::Y, DVec3::Z] {
             push_line(lines, p - s * axis, p + s * axis, point_color);
         }
-        push_line(lines, p, p + contact.normal * (5.0 * s), normal_color);
+        push_line(lines, p, p + normal * (5.0 * s), normal_color);
     }
 }
 

@@ -180,6 +180,10 @@ impl ContactCache {
         self.entries.sort_by_key(|(pair, _)| *pair);
     }
 
+    pub fn heap_bytes(&self) -> usize {
+        self.entries.capacity() * std::mem::size_of::<((usize, usize), CachedManifold)>()
+    }
+
     /// Number of manifolds remembered.
     pub fn len(&self) -> usize {
         self.entries.len()

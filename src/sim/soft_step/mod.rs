@@ -20,6 +20,7 @@ pub mod solver_body;
 use super::body::{RigidBody, may_collide};
 use super::broad_phase::BroadPhase;
 use super::constraint::DistanceConstraint;
+use super::grab::Grab;
 use super::integrate::integrate_pose;
 use super::shape::Shape;
 use super::stats::{Stage, StepStats, Stopwatch};
@@ -76,6 +77,20 @@ pub struct Scene<'a> {
     pub bodies: &'a mut [RigidBody],
     pub shapes: &'a [Shape],
     pub constraints: &'a [DistanceConstraint],
+    pub grab: Option<&'a Grab>,
+}
+
+/// What a step leaves for the next one (warm-start impulses): a snapshot's share.
+#[derive(Debug, Clone, Default)]
+pub struct Carried {
+    contacts: ContactCache,
+    joint_impulses: Vec<f64>,
+}
+
+impl Carried {
+    pub fn heap_bytes(&self) -> usize {
+        self.contacts.heap_bytes() + self.joint_impulses.capacity() * 8
+    }
 }
 
 /// The step's constants: substep length, softness, contact parameters.
@@ -116,6 +131,18 @@ impl Substeps {
 }
 
 impl SoftStep {
+    pub fn carried(&self) -> Carried {
+        Carried {
+            contacts: self.contacts.clone(),
+            joint_impulses: self.joint_impulses.clone(),
+        }
+    }
+
+    pub fn restore(&mut self, carried: &Carried) {
+        self.contacts.clone_from(&carried.contacts);
+        self.joint_impulses.clone_from(&carried.joint_impulses);
+    }
+
     /// One step: collide, then solve in substeps.
     pub fn step(
         &mut self,
@@ -145,6 +172,9 @@ impl SoftStep {
             if k > 0 {
                 watch.enter(Stage::Integrate);
                 kick(scene.bodies, &mut self.work.bodies, kick_by(substeps.h));
+            }
+            if let Some(grab) = scene.grab {
+                pull(grab, scene.bodies, &mut self.work.bodies, substeps.h);
             }
             self.substep(ctx, scene.bodies, &substeps, watch);
         }
@@ -373,6 +403,17 @@ fn integrate_positions(
         sb.angular_velocity = body.angular_velocity;
         sb.delta_position = body.position - p0;
         sb.delta_rotation = manifold::delta_rotation(q0, body.orientation);
+    }
+}
+
+/// The grab's impulse over a substep, on the solver's velocities.
+fn pull(grab: &Grab, bodies: &[RigidBody], solver_bodies: &mut [SolverBody], h: f64) {
+    let (Some(body), Some(sb)) = (bodies.get(grab.body), solver_bodies.get_mut(grab.body)) else {
+        return;
+    };
+    let velocities = (sb.linear_velocity, sb.angular_velocity);
+    if let Some((r, impulse)) = grab.impulse(body, velocities, h) {
+        sb.apply(r, impulse);
     }
 }
 
