@@ -119,23 +119,41 @@ pub struct ContactConstraint {
     pub count: usize,
 }
 
+/// What one manifold point carries to the next step.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct CachedPoint {
+    key: u64,
+    normal_impulse: f64,
+    point: DVec3,
+}
+
 /// What one manifold carries to the next step.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct CachedManifold {
     /// The friction impulse as a world vector, so a turned tangent basis does not turn it.
     friction: DVec3,
     twist: f64,
-    /// (feature key, normal impulse) of each point.
-    points: [(u64, f64); MAX_POINTS],
+    points: [CachedPoint; MAX_POINTS],
     count: usize,
 }
 
 impl CachedManifold {
-    fn normal_impulse(&self, key: u64) -> f64 {
-        self.points[..self.count]
+    /// Last step's impulse of the point with this feature key; failing that (faces lying flush
+    /// on each other are clipped into points whose features flip from step to step, and the
+    /// GJK point has none), of the nearest point within `reach`.
+    fn normal_impulse(&self, key: u64, point: DVec3, reach: f64) -> f64 {
+        let points = &self.points[..self.count];
+        if key != 0
+            && let Some(p) = points.iter().find(|p| p.key == key)
+        {
+            return p.normal_impulse;
+        }
+        points
             .iter()
-            .find(|(k, _)| *k == key)
-            .map_or(0.0, |(_, impulse)| *impulse)
+            .map(|p| ((p.point - point).length_squared(), p.normal_impulse))
+            .filter(|(d2, _)| *d2 <= reach * reach)
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map_or(0.0, |(_, impulse)| impulse)
     }
 }
 
@@ -168,12 +186,16 @@ impl ContactCache {
                 friction: f.tangent_impulse[0] * f.tangents[0]
                     + f.tangent_impulse[1] * f.tangents[1],
                 twist: f.twist_impulse,
-                points: [(0, 0.0); MAX_POINTS],
+                points: [CachedPoint::default(); MAX_POINTS],
                 count: c.count,
             };
             let kept = &points[c.first..c.first + c.count];
-            for (slot, p) in cached.points.iter_mut().zip(kept) {
-                *slot = (p.key, p.normal_impulse);
+            for ((slot, p), mp) in cached.points.iter_mut().zip(kept).zip(m.points()) {
+                *slot = CachedPoint {
+                    key: p.key,
+                    normal_impulse: p.normal_impulse,
+                    point: mp.point,
+                };
             }
             self.entries.push(((m.body1, m.body2), cached));
         }
@@ -330,6 +352,9 @@ pub fn prepare(
         };
         let cached = cache.lookup((m.body1, m.body2));
         let (x1, x2) = ((i != ground).then(|| poses[i].0), poses[j].0);
+        let friction = friction_at(m.points(), (b1, x1), (b2, x2), n, params.friction, cached);
+        // Points nearer than a fifth of the patch radius are taken for the same point.
+        let reach = 0.2 * friction.twist_radius + 1e-6;
         let first = points.len();
         for mp in m.points() {
             let (r1, r2) = (x1.map_or(DVec3::ZERO, |x| mp.point - x), mp.point - x2);
@@ -340,14 +365,13 @@ pub fn prepare(
                 along_normal,
                 normal_mass,
                 separation: mp.separation,
-                normal_impulse: cached.map_or(0.0, |c| c.normal_impulse(mp.key)),
+                normal_impulse: cached.map_or(0.0, |c| c.normal_impulse(mp.key, mp.point, reach)),
                 restitution_impulse: 0.0,
                 max_normal_impulse: 0.0,
                 impact_energy: 0.0,
                 key: mp.key,
             });
         }
-        let friction = friction_at(m.points(), (b1, x1), (b2, x2), n, params.friction, cached);
         constraints.push(ContactConstraint {
             body1: i,
             body2: j,

@@ -1,0 +1,274 @@
+//! The soft-step solver (the `--accurate` preset) against closed forms and invariants: resting
+//! bodies stay put, static and sliding friction on an incline, a pendulum keeps its energy,
+//! impacts keep momentum, bounces keep e^2 of the energy, nothing tunnels, and the results do
+//! not depend on the thread count. The coursework solver is not touched by its settings.
+mod common;
+
+use glam::{DQuat, DVec3};
+use tumble::bench::scenarios::{self, Scenario};
+use tumble::scene::assets;
+use tumble::{ConstraintsChoice, RigidBody, Settings, Shape, World};
+
+fn accurate(dt: f64) -> Settings {
+    Settings {
+        time_step: dt,
+        ..Settings::accurate()
+    }
+}
+
+fn boxes(stack: usize, settings: Settings) -> World {
+    let s = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(1.0, 0.5, 0.75))).unwrap();
+    let bodies = (0..stack)
+        .map(|k| {
+            let y = 0.5 + 1.0 * k as f64;
+            RigidBody::on_shape(
+                &s,
+                0,
+                100.0,
+                false,
+                DVec3::new(0.0, y, 0.0),
+                DQuat::IDENTITY,
+            )
+        })
+        .collect();
+    World::new(vec![s], vec!["box".into()], bodies, Vec::new(), settings)
+}
+
+#[test]
+fn resting_box_and_stack_do_not_move() {
+    for dt in [0.04, 0.02, 0.01] {
+        for stack in [1, 5] {
+            let mut world = boxes(stack, accurate(dt));
+            let start: Vec<DVec3> = world.bodies.iter().map(|b| b.position).collect();
+            let settle = (1.0 / dt) as usize;
+            for _ in 0..settle {
+                world.step();
+            }
+            // Soft contacts hold the weight like springs: each sinks by the acceleration it
+            // holds over omega^2 (about 4e-4 on the ground at dt = 0.04, more under a stack,
+            // whose contacts between boxes are half as stiff).
+            let settled: Vec<DVec3> = world.bodies.iter().map(|b| b.position).collect();
+            for (a, b) in start.iter().zip(&settled) {
+                let sank = (*a - *b).length();
+                assert!(sank < 0.05, "dt {dt}, stack of {stack}: sank {sank}");
+            }
+            let mut drift: f64 = 0.0;
+            for _ in 0..(10.0 / dt) as usize {
+                world.step();
+                for (b, x) in world.bodies.iter().zip(&settled) {
+                    drift = drift.max((b.position - *x).length());
+                }
+            }
+            assert!(
+                drift < 1e-6,
+                "dt {dt}, stack of {stack}: moved {drift} after settling"
+            );
+        }
+    }
+}
+
+#[test]
+fn friction_holds_at_20_degrees_and_slides_at_30() {
+    for dt in [0.04, 0.02, 0.01] {
+        let held = scenarios::run(Scenario::Slope20, &accurate(dt));
+        let d = held.metric("displacement").unwrap();
+        assert!(d < 1e-3, "dt {dt}: moved {d} at 20 degrees");
+        let slid = scenarios::run(Scenario::Slope30, &accurate(dt));
+        let e = slid.metric("acceleration_error").unwrap();
+        assert!(e < 0.01, "dt {dt}: acceleration {e} off at 30 degrees");
+    }
+}
+
+#[test]
+fn pendulum_keeps_its_amplitude_and_period() {
+    for (dt, amplitude_bound) in [(0.01, 0.01), (0.04, 0.02)] {
+        let outcome = scenarios::run(Scenario::Pendulum, &accurate(dt));
+        let amplitude = outcome.metric("amplitude_error").unwrap();
+        let period = outcome.metric("period_error").unwrap();
+        assert!(
+            amplitude < amplitude_bound,
+            "dt {dt}: amplitude off by {amplitude}"
+        );
+        assert!(period < 2e-4, "dt {dt}: period off by {period}");
+    }
+}
+
+#[test]
+fn impacts_in_zero_gravity_keep_momentum() {
+    let s = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(1.0, 0.5, 0.75))).unwrap();
+    let t = Shape::from_tet_mesh(&assets::octahedron(DVec3::splat(1.0))).unwrap();
+    let mut a = RigidBody::on_shape(
+        &s,
+        0,
+        3.0,
+        false,
+        DVec3::new(-3.0, 10.0, 0.2),
+        DQuat::from_rotation_z(0.4),
+    );
+    let mut b = RigidBody::on_shape(
+        &t,
+        1,
+        1.0,
+        false,
+        DVec3::new(3.0, 10.3, -0.1),
+        DQuat::from_rotation_x(0.7),
+    );
+    a.linear_velocity = DVec3::new(4.0, 0.3, 0.0);
+    a.angular_velocity = DVec3::new(0.0, 1.0, 2.0);
+    b.linear_velocity = DVec3::new(-5.0, 0.0, 0.4);
+    b.angular_velocity = DVec3::new(-1.0, 0.0, 0.5);
+    for restitution in [0.0, 0.5, 1.0] {
+        let settings = Settings {
+            gravity: DVec3::ZERO,
+            restitution,
+            ..accurate(0.02)
+        };
+        let mut world = World::new(
+            vec![s.clone(), t.clone()],
+            vec!["box".into(), "octahedron".into()],
+            vec![a.clone(), b.clone()],
+            Vec::new(),
+            settings,
+        );
+        let momentum = |w: &World| -> (DVec3, DVec3) {
+            w.bodies
+                .iter()
+                .fold((DVec3::ZERO, DVec3::ZERO), |(p, l), b| {
+                    let linear = b.mass * b.linear_velocity;
+                    (
+                        p + linear,
+                        l + b.position.cross(linear) + b.world_inertia() * b.angular_velocity,
+                    )
+                })
+        };
+        let (p0, l0) = momentum(&world);
+        let mut touched = false;
+        for _ in 0..100 {
+            let stats = world.step();
+            touched |= stats.contacts > 0 && stats.manifold_points > 0;
+            let (p, l) = momentum(&world);
+            // Equal and opposite impulses: linear momentum to rounding.
+            common::assert_vec_close(p, p0, 1e-10, "linear momentum");
+            // Angular momentum too, up to the lever arms being those of the step's start while
+            // the bodies move through the substeps (as in Box2D): about a part in 10^3.
+            assert!((l - l0).length() < 3e-3 * l0.length(), "{l} vs {l0}");
+        }
+        assert!(touched, "the bodies never met");
+    }
+}
+
+#[test]
+fn bounces_keep_e_squared_of_the_energy() {
+    for dt in [0.04, 0.02, 0.01] {
+        for e in [1.0, 0.8, 0.5] {
+            let settings = Settings {
+                restitution: e,
+                ..accurate(dt)
+            };
+            let outcome = scenarios::run(Scenario::Bounce, &settings);
+            let error = outcome.metric("apex_ratio_error").unwrap();
+            assert!(outcome.metric("apexes_seen").unwrap() >= 2.0);
+            assert!(error < 1e-3, "dt {dt}, e {e}: apex ratio off by {error}");
+        }
+    }
+}
+
+#[test]
+fn fast_box_does_not_pass_through_a_thin_wall() {
+    let ball = Shape::from_tet_mesh(&assets::cuboid(DVec3::splat(0.5))).unwrap();
+    let wall = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(0.5, 20.0, 20.0))).unwrap();
+    for dt in [0.02, 0.04] {
+        let mut thrown = RigidBody::on_shape(
+            &ball,
+            0,
+            100.0,
+            false,
+            DVec3::new(-10.0, 30.0, 0.0),
+            DQuat::IDENTITY,
+        );
+        thrown.linear_velocity = DVec3::new(200.0, 0.0, 0.0);
+        let fixed = RigidBody::on_shape(
+            &wall,
+            1,
+            100.0,
+            true,
+            DVec3::new(0.0, 30.0, 0.0),
+            DQuat::IDENTITY,
+        );
+        let mut world = World::new(
+            vec![ball.clone(), wall.clone()],
+            vec!["ball".into(), "wall".into()],
+            vec![thrown, fixed],
+            Vec::new(),
+            Settings {
+                gravity: DVec3::ZERO,
+                restitution: 0.0,
+                substeps: 1,
+                ..accurate(dt)
+            },
+        );
+        for _ in 0..20 {
+            world.step();
+            // The wall spans x = -0.5..0.5 and the box is 1 wide: it must stay on the near side
+            // (a speculative stop may leave it a little inside, pushed out in the next steps).
+            let x = world.bodies[0].position.x;
+            assert!(x < -0.75, "dt {dt}: x = {x}");
+        }
+        let x = world.bodies[0].position.x;
+        assert!(
+            x < -1.0 + 1e-3,
+            "dt {dt}: still {} inside the wall",
+            x + 1.0
+        );
+    }
+}
+
+fn trajectory(world: &mut World, steps: usize) -> Vec<f64> {
+    let mut out = Vec::new();
+    for _ in 0..steps {
+        world.step();
+        for b in &world.bodies {
+            out.extend(b.position.to_array());
+            out.extend(b.orientation.to_array());
+            out.extend(b.linear_velocity.to_array());
+        }
+    }
+    out
+}
+
+#[test]
+fn results_do_not_depend_on_the_thread_count() {
+    for scene in ["pile-120", "two-chain", "stress"] {
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                let mut w =
+                    tumble::scene::load(scene, &ConstraintsChoice::Auto, accurate(0.02)).unwrap();
+                trajectory(&mut w, 150)
+            })
+        };
+        assert!(run(1) == run(2), "{scene}: 1 and 2 threads differ");
+    }
+}
+
+#[test]
+fn the_coursework_solver_ignores_the_soft_step_settings() {
+    for scene in ["mixed", "two-chain"] {
+        let run = |settings: Settings| {
+            let mut w = tumble::scene::load(scene, &ConstraintsChoice::Auto, settings).unwrap();
+            trajectory(&mut w, 200)
+        };
+        let plain = run(Settings::default());
+        let other = run(Settings {
+            friction: 0.9,
+            ..Settings::default()
+        });
+        assert!(
+            plain == other,
+            "{scene}: friction changed the coursework solver"
+        );
+    }
+}
