@@ -43,6 +43,9 @@ pub struct SettingsArgs {
     /// Contacts closing slower than this (units/s) bounce with e = 0.
     #[arg(long, value_name = "SPEED")]
     pub restitution_threshold: Option<f64>,
+    /// Never put resting islands to sleep (soft-step solver).
+    #[arg(long)]
+    pub no_sleep: bool,
     /// Contacts act at the centroid of the contact patch instead of one deepest point.
     #[arg(long)]
     pub contact_patches: bool,
@@ -103,6 +106,7 @@ impl SettingsArgs {
         }
         s.skip_separating_contacts |= self.skip_separating_contacts;
         s.contact_patches |= self.contact_patches;
+        s.sleep &= !self.no_sleep;
         if let Some(v) = self.restitution_threshold {
             anyhow::ensure!(
                 v.is_finite() && v >= 0.0,

@@ -27,6 +27,11 @@ pub struct RigidBody {
     /// its last finite pose: it never moves, other bodies' contacts ignore it (it may sit inside
     /// them), and its distance constraints hold their other body to it as to a fixed anchor.
     pub quarantined: bool,
+    /// Resting with its island (soft-step solver): not integrated, not solved, until a
+    /// contact with a moving body, a constraint to one, a grab or a settings change wakes it.
+    pub asleep: bool,
+    /// Seconds the body has moved slower than the sleep threshold (soft-step solver).
+    pub sleep_time: f64,
 }
 
 impl RigidBody {
@@ -64,6 +69,8 @@ impl RigidBody {
             inertia,
             inverse_inertia,
             quarantined: false,
+            asleep: false,
+            sleep_time: 0.0,
         }
     }
 
@@ -103,6 +110,11 @@ impl RigidBody {
     /// Whether contacts and constraints may move this body.
     pub fn is_dynamic(&self) -> bool {
         !self.fixed && !self.quarantined
+    }
+
+    /// Whether the soft step integrates and solves this body this step.
+    pub fn is_awake(&self) -> bool {
+        self.is_dynamic() && !self.asleep
     }
 
     pub fn rotation(&self) -> DMat3 {

@@ -124,6 +124,9 @@ pub struct Settings {
     /// solves and integrates in substeps.
     pub substeps: u32,
     pub rotation_integrator: RotationIntegrator,
+    /// Islands that stay slower than the sleep threshold for half a second sleep until
+    /// something touches them (soft-step solver; the coursework solver never sleeps).
+    pub sleep: bool,
     pub broad_phase: BroadPhase,
     pub constraint_schedule: ConstraintSchedule,
 }
@@ -143,6 +146,7 @@ impl Default for Settings {
             contact_patches: false,
             substeps: 1,
             rotation_integrator: RotationIntegrator::Coursework,
+            sleep: true,
             broad_phase: BroadPhase::Grid,
             constraint_schedule: ConstraintSchedule::Sweep,
         }

@@ -186,6 +186,8 @@ pub struct StepStats {
     pub constraint_corrections: usize,
     /// The constraint loop stopped on its budget with constraints still violated.
     pub budget_hit: bool,
+    /// Bodies asleep at the end of the step (soft-step solver).
+    pub asleep: usize,
     /// Bodies frozen this step because their state went non-finite or absurd.
     pub quarantined: Vec<usize>,
 }
@@ -204,6 +206,7 @@ impl StepStats {
         self.constraint_visits += other.constraint_visits;
         self.constraint_corrections += other.constraint_corrections;
         self.budget_hit |= other.budget_hit;
+        self.asleep = other.asleep;
         self.quarantined.extend(other.quarantined);
     }
 }

@@ -280,6 +280,7 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
         contact_patches,
         substeps,
         rotation_integrator,
+        sleep,
         broad_phase,
         constraint_schedule,
     } = settings;
@@ -317,6 +318,8 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
     });
     ui.checkbox(skip_separating_contacts, "skip separating contacts")
         .on_hover_text("No impulse for contacts whose bodies already separate");
+    ui.checkbox(sleep, "sleep")
+        .on_hover_text("Islands resting for half a second sleep until touched (soft-step solver)");
     ui.checkbox(contact_patches, "contact patches")
         .on_hover_text(
             "Contacts act at the centroid of the contact patch, not at one deepest point",

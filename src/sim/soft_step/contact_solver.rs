@@ -172,14 +172,24 @@ impl ContactCache {
             .map(|(_, c)| c)
     }
 
-    /// Keeps this step's impulses (and forgets pairs no longer in contact).
+    /// The body pairs remembered (body 1 may be [`GROUND`]).
+    pub fn pairs(&self) -> impl Iterator<Item = (usize, usize)> + '_ {
+        self.entries.iter().map(|(pair, _)| *pair)
+    }
+
+    /// Keeps this step's impulses, and last step's of pairs with a sleeping body (not
+    /// collided while they sleep, needed when they wake); forgets the rest.
     pub fn store(
         &mut self,
         manifolds: &[Manifold],
         constraints: &[ContactConstraint],
         points: &[ContactPoint],
+        bodies: &[crate::sim::body::RigidBody],
     ) {
-        self.entries.clear();
+        let sleeping =
+            |(i, j): (usize, usize)| (i != GROUND && bodies[i].asleep) || bodies[j].asleep;
+        let mut old = std::mem::take(&mut self.entries);
+        old.retain(|(pair, _)| sleeping(*pair));
         for (m, c) in manifolds.iter().zip(constraints) {
             let f = &c.friction;
             let mut cached = CachedManifold {
@@ -198,6 +208,17 @@ impl ContactCache {
                 };
             }
             self.entries.push(((m.body1, m.body2), cached));
+        }
+        self.entries.sort_by_key(|(pair, _)| *pair);
+        // A pair both collided and kept (a body fell asleep this step): the new entry wins.
+        let fresh = self.entries.len();
+        for entry in old {
+            if self.entries[..fresh]
+                .binary_search_by_key(&entry.0, |(pair, _)| *pair)
+                .is_err()
+            {
+                self.entries.push(entry);
+            }
         }
         self.entries.sort_by_key(|(pair, _)| *pair);
     }
@@ -384,6 +405,54 @@ pub fn prepare(
             first,
             count: points.len() - first,
         });
+    }
+}
+
+/// A share of every point's and manifold's accumulated impulse, held back from the
+/// accumulators for a while. Velocity Verlet gives the first substep and the final pass half a
+/// kick of gravity each: warm-started with the whole support of a full kick they would throw a
+/// resting stack up and leave it falling at the step's end. The share held back from the
+/// first substep is released into the second.
+#[derive(Debug, Clone, Default)]
+pub struct HeldImpulses {
+    normal: Vec<f64>,
+    friction: Vec<([f64; 2], f64)>,
+}
+
+impl HeldImpulses {
+    /// Moves `fraction` of every accumulated impulse out of the accumulators.
+    pub fn hold_back(
+        &mut self,
+        constraints: &mut [ContactConstraint],
+        points: &mut [ContactPoint],
+        fraction: f64,
+    ) {
+        self.normal.clear();
+        self.normal.extend(points.iter_mut().map(|p| {
+            let held = fraction * p.normal_impulse;
+            p.normal_impulse -= held;
+            held
+        }));
+        self.friction.clear();
+        self.friction.extend(constraints.iter_mut().map(|c| {
+            let f = &mut c.friction;
+            let held = (f.tangent_impulse.map(|t| fraction * t), fraction * f.twist_impulse);
+            f.tangent_impulse = [0, 1].map(|k| f.tangent_impulse[k] - held.0[k]);
+            f.twist_impulse -= held.1;
+            held
+        }));
+    }
+
+    /// Adds the held impulses back to the accumulators (not applied to the bodies).
+    pub fn release(&mut self, constraints: &mut [ContactConstraint], points: &mut [ContactPoint]) {
+        for (p, n) in points.iter_mut().zip(self.normal.drain(..)) {
+            p.normal_impulse += n;
+        }
+        for (c, (t, twist)) in constraints.iter_mut().zip(self.friction.drain(..)) {
+            let f = &mut c.friction;
+            f.tangent_impulse = [0, 1].map(|k| f.tangent_impulse[k] + t[k]);
+            f.twist_impulse += twist;
+        }
     }
 }
 

@@ -14,6 +14,7 @@ pub mod joint_block;
 pub mod joint_solver;
 pub mod manifold;
 pub mod restitution;
+pub mod sleep;
 pub mod softness;
 pub mod solver_body;
 
@@ -25,7 +26,9 @@ use super::integrate::integrate_pose;
 use super::shape::Shape;
 use super::stats::{Stage, StepStats, Stopwatch};
 use super::step_context::StepContext;
-use contact_solver::{ContactCache, ContactConstraint, ContactParams, ContactPoint, Pass};
+use contact_solver::{
+    ContactCache, ContactConstraint, ContactParams, ContactPoint, HeldImpulses, Pass,
+};
 use glam::{DQuat, DVec3};
 use joint_block::JointBlocks;
 use joint_solver::JointRow;
@@ -53,6 +56,8 @@ pub struct SoftStep {
     /// Bounding radius of each shape (for the speculative margin of spinning bodies).
     radii: Vec<f64>,
     blocks: JointBlocks,
+    /// The settings of the last step: a change wakes every sleeping body.
+    last_settings: Option<crate::sim::Settings>,
     work: Workspace,
 }
 
@@ -70,6 +75,30 @@ struct Workspace {
     points: Vec<ContactPoint>,
     rows: Vec<JointRow>,
     large_groups: Vec<usize>,
+    held: HeldImpulses,
+    held_rows: Vec<f64>,
+}
+
+impl Workspace {
+    /// Holds back `fraction` of the contacts' and joint rows' accumulated impulses (see
+    /// [`HeldImpulses`]).
+    fn hold_back(&mut self, fraction: f64) {
+        self.held
+            .hold_back(&mut self.contacts, &mut self.points, fraction);
+        self.held_rows.clear();
+        self.held_rows.extend(self.rows.iter_mut().map(|r| {
+            let held = fraction * r.impulse;
+            r.impulse -= held;
+            held
+        }));
+    }
+
+    fn release(&mut self) {
+        self.held.release(&mut self.contacts, &mut self.points);
+        for (r, held) in self.rows.iter_mut().zip(self.held_rows.drain(..)) {
+            r.impulse += held;
+        }
+    }
 }
 
 /// The bodies, shapes and constraints the solver works on.
@@ -109,9 +138,10 @@ impl Substeps {
         if h <= 0.0 || !h.is_finite() {
             return None;
         }
-        // Stiffer contacts than an eighth of the substep rate ring, and rock bodies resting on
-        // inclines (Box2D v3.1's clamp; a quarter, v3.0's, let a box walk down a 20 degree
-        // slope by 2.2e-3 in 5 s at dt = 0.04, an eighth by 4.9e-4).
+        // Contacts stiffer than an eighth of the substep rate ring (Box2D v3.1's clamp): under a
+        // quarter (v3.0's) a stack of five boxes at dt = 0.04 never settles, jittering by 9e-3;
+        // a sixth already rings by 6e-3. The price is sag under load, which grows with the
+        // substep: the top of a stack of ten sinks by 0.18 at dt = 0.04, 0.044 at dt = 0.02.
         let contact_hertz = CONTACT_HERTZ.min(0.125 / h);
         Some(Self {
             count,
@@ -152,7 +182,10 @@ impl SoftStep {
         watch: &mut Stopwatch,
         stats: &mut StepStats,
     ) {
-        self.collide(ctx, scene.bodies, scene.shapes, broad, watch, stats);
+        let mut scene = scene;
+        self.wake_on_demand(ctx, &mut scene);
+        let pairs = self.broad_phase(ctx, &mut scene, broad, watch, stats);
+        self.narrow_phase(scene.bodies, scene.shapes, broad, &pairs, watch, stats);
         watch.enter(Stage::Solve);
         let Some(substeps) = Substeps::new(ctx) else {
             return;
@@ -176,7 +209,13 @@ impl SoftStep {
             if let Some(grab) = scene.grab {
                 pull(grab, scene.bodies, &mut self.work.bodies, substeps.h);
             }
+            if k == 0 {
+                self.work.hold_back(0.5);
+            }
             self.substep(ctx, scene.bodies, &substeps, watch);
+            if k == 0 {
+                self.work.release();
+            }
         }
         watch.enter(Stage::Integrate);
         kick(
@@ -185,23 +224,42 @@ impl SoftStep {
             kick_by(0.5 * substeps.h),
         );
         watch.enter(Stage::Solve);
-        self.relax(scene.bodies, &substeps, Pass::Final);
-        watch.enter(Stage::Solve);
-        self.finish(ctx, scene.bodies, stats);
+        self.final_pass(scene.bodies, &substeps);
+        self.finish(ctx, (scene.bodies, scene.constraints), stats);
     }
 
-    /// Broad and narrow phase: manifolds of every pair (and body on the ground) whose gap can
-    /// close within the step, ground first, then pairs in (body 1, body 2) order.
-    fn collide(
+    /// Wakes everything when sleeping is off or the settings changed, and the grabbed body's
+    /// island.
+    fn wake_on_demand(&mut self, ctx: &StepContext, scene: &mut Scene) {
+        let changed = self.last_settings.as_ref() != Some(&ctx.settings);
+        if changed {
+            self.last_settings = Some(ctx.settings.clone());
+        }
+        let bodies = &mut *scene.bodies;
+        if changed || !ctx.settings.sleep {
+            for b in bodies.iter_mut().filter(|b| b.asleep) {
+                b.asleep = false;
+                b.sleep_time = 0.0;
+            }
+        } else if let Some(grab) = scene.grab {
+            let touching = self.contacts.pairs();
+            sleep::wake(bodies, scene.constraints, touching, std::iter::once(grab.body));
+        }
+    }
+
+    /// Candidate pairs: bodies whose boxes, grown by how far they can travel this step,
+    /// overlap (pairs of sleeping bodies left out). Sleeping islands an awake body comes near
+    /// are woken first.
+    fn broad_phase(
         &mut self,
         ctx: &StepContext,
-        bodies: &[RigidBody],
-        shapes: &[Shape],
+        scene: &mut Scene,
         broad: &mut BroadPhase,
         watch: &mut Stopwatch,
         stats: &mut StepStats,
-    ) {
+    ) -> Vec<(u32, u32)> {
         watch.enter(Stage::BroadPhase);
+        let (bodies, shapes) = (&mut *scene.bodies, scene.shapes);
         if self.radii.len() != shapes.len() {
             self.radii = shapes.iter().map(|s| s.bounding_radius()).collect();
         }
@@ -213,8 +271,32 @@ impl SoftStep {
                 .iter()
                 .map(|b| motion_bound(b, self.radii[b.shape], gravity, dt) + SPECULATIVE_DISTANCE),
         );
-        let keep = |i: usize, j: usize| may_collide(&bodies[i], &bodies[j]);
-        let pairs = broad.speculative_pairs(bodies, shapes, margins, keep, &mut stats.pairs_tested);
+        loop {
+            let view = &*bodies;
+            let keep = |i: usize, j: usize| {
+                may_collide(&view[i], &view[j]) && !(view[i].asleep && view[j].asleep)
+            };
+            let pairs =
+                broad.speculative_pairs(view, shapes, margins, keep, &mut stats.pairs_tested);
+            let seeds = sleep::disturbed(view, scene.constraints, &pairs);
+            let touching = self.contacts.pairs();
+            if !sleep::wake(bodies, scene.constraints, touching, seeds.into_iter()) {
+                return pairs;
+            }
+        }
+    }
+
+    /// Manifolds of the candidate pairs and of the awake bodies near the ground, ground first,
+    /// then pairs in (body 1, body 2) order.
+    fn narrow_phase(
+        &mut self,
+        bodies: &[RigidBody],
+        shapes: &[Shape],
+        broad: &BroadPhase,
+        pairs: &[(u32, u32)],
+        watch: &mut Stopwatch,
+        stats: &mut StepStats,
+    ) {
         watch.enter(Stage::NarrowPhase);
         stats.narrow_phase_queries += pairs.len();
         let margins = &self.work.margins;
@@ -227,7 +309,7 @@ impl SoftStep {
                 .with_min_len(256)
                 .filter_map(|j| {
                     let b = &bodies[j];
-                    let reaches = b.is_dynamic() && boxes[j].min.y - margins[j] <= 0.0;
+                    let reaches = b.is_awake() && boxes[j].min.y - margins[j] <= 0.0;
                     reaches.then(|| ground_manifold(j, b, &shapes[b.shape], margins[j]))?
                 }),
         );
@@ -258,7 +340,7 @@ impl SoftStep {
         let g = ctx.settings.gravity;
         work.start_energy.clear();
         work.start_energy.extend(bodies.iter().map(|b| {
-            if b.is_dynamic() {
+            if b.is_awake() {
                 restitution::energy(b, b.linear_velocity, b.angular_velocity, g)
             } else {
                 0.0
@@ -337,8 +419,24 @@ impl SoftStep {
         self.solve_pass(bodies, substeps, pass);
     }
 
+    /// A rigid pass after the last half kick, warm-started with half of every accumulated
+    /// impulse (the support that half kick needs), so a resting stack ends the step at rest.
+    fn final_pass(&mut self, bodies: &[RigidBody], substeps: &Substeps) {
+        let w = &mut self.work;
+        w.hold_back(0.5);
+        joint_solver::warm_start(&w.rows, bodies, &mut w.bodies);
+        contact_solver::warm_start(&w.contacts, &w.points, &mut w.bodies);
+        self.relax(bodies, substeps, Pass::Final);
+        self.work.release();
+    }
+
     /// Restitution with its energy rule, velocities back into the bodies, impulses kept.
-    fn finish(&mut self, ctx: &StepContext, bodies: &mut [RigidBody], stats: &mut StepStats) {
+    fn finish(
+        &mut self,
+        ctx: &StepContext,
+        (bodies, constraints): (&mut [RigidBody], &[DistanceConstraint]),
+        stats: &mut StepStats,
+    ) {
         let w = &mut self.work;
         w.before_restitution.clone_from(&w.bodies);
         restitution::apply(&w.contacts, &mut w.points, &mut w.bodies);
@@ -361,12 +459,17 @@ impl SoftStep {
             &rule,
         );
         for (body, sb) in bodies.iter_mut().zip(&w.bodies) {
-            if body.is_dynamic() {
+            if body.is_awake() {
                 body.linear_velocity = sb.linear_velocity;
                 body.angular_velocity = sb.angular_velocity;
             }
         }
-        self.contacts.store(&w.manifolds, &w.contacts, &w.points);
+        if ctx.settings.sleep {
+            let touching = sleep::touching_pairs(&w.manifolds);
+            sleep::settle(bodies, &self.radii, &w.start, constraints, touching, ctx.settings.time_step);
+        }
+        stats.asleep = bodies.iter().filter(|b| b.asleep).count();
+        self.contacts.store(&w.manifolds, &w.contacts, &w.points, bodies);
         let count = w.rows.iter().map(|r| r.constraint + 1).max().unwrap_or(0);
         self.joint_impulses.clear();
         self.joint_impulses.resize(count, 0.0);
@@ -393,7 +496,7 @@ fn integrate_positions(
 ) {
     let integrator = ctx.settings.rotation_integrator;
     for ((body, sb), &(p0, q0)) in bodies.iter_mut().zip(solver_bodies.iter_mut()).zip(start) {
-        if !body.is_dynamic() {
+        if !body.is_awake() {
             continue;
         }
         body.linear_velocity = sb.linear_velocity;
@@ -420,7 +523,7 @@ fn pull(grab: &Grab, bodies: &[RigidBody], solver_bodies: &mut [SolverBody], h: 
 /// Adds `dv` (half a substep of gravity) to every movable body's velocity.
 fn kick(bodies: &[RigidBody], solver_bodies: &mut [SolverBody], dv: DVec3) {
     for (sb, body) in solver_bodies.iter_mut().zip(bodies) {
-        if body.is_dynamic() {
+        if body.is_awake() {
             sb.linear_velocity += dv;
         }
     }
@@ -428,7 +531,7 @@ fn kick(bodies: &[RigidBody], solver_bodies: &mut [SolverBody], dv: DVec3) {
 
 fn update_deltas(bodies: &[RigidBody], solver_bodies: &mut [SolverBody], start: &[(DVec3, DQuat)]) {
     for ((body, sb), &(p0, q0)) in bodies.iter().zip(solver_bodies.iter_mut()).zip(start) {
-        if body.is_dynamic() {
+        if body.is_awake() {
             sb.delta_position = body.position - p0;
             sb.delta_rotation = manifold::delta_rotation(q0, body.orientation);
         }

@@ -156,7 +156,7 @@ fn bouncing_groups(contacts: &Contacts, poses: &[RigidBody]) -> Vec<Vec<usize>> 
         points,
     } = *contacts;
     let n = poses.len();
-    let dynamic = |i: usize| i != GROUND && poses[i].is_dynamic();
+    let dynamic = |i: usize| i != GROUND && poses[i].is_awake();
     let mut parent: Vec<usize> = (0..n).collect();
     let mut bouncing = vec![false; n];
     let find = |parent: &mut Vec<usize>, mut x: usize| {

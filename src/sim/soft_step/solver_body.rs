@@ -31,7 +31,7 @@ impl SolverBody {
     };
 
     pub fn new(body: &RigidBody) -> Self {
-        if !body.is_dynamic() {
+        if !body.is_awake() {
             return Self::STATIC;
         }
         Self {

@@ -1,0 +1,159 @@
+//! Sleeping (after Box2D): a body whose speed, counting its spin at its rim, stays under
+//! [`SLEEP_SPEED`] gathers sleep time; an island (bodies joined by touching contacts and
+//! distance constraints) in which every body has slept for [`TIME_TO_SLEEP`] goes to sleep and
+//! costs nothing until something wakes it: contact with a moving body, a constraint to one, a
+//! grab, or a change of settings. A time window, not an instantaneous speed: a pendulum at
+//! its apex is still for an instant only.
+//!
+//! The speed is that of the step's displacement, as Rapier measures it, not of the velocities
+//! kept: those carry what the last Gauss-Seidel pass left unconverged in a deep pile, which the
+//! next step's solve takes back without moving anything.
+
+use super::manifold::{GROUND, Manifold};
+use crate::sim::body::RigidBody;
+use crate::sim::constraint::DistanceConstraint;
+
+/// Speed (units/s) under which a body counts as resting.
+pub const SLEEP_SPEED: f64 = 0.05;
+/// Seconds an island must rest before it sleeps.
+pub const TIME_TO_SLEEP: f64 = 0.5;
+
+/// Disjoint sets over body indices (union by smaller root, path halving).
+struct Islands(Vec<usize>);
+
+impl Islands {
+    fn new(n: usize) -> Self {
+        Self((0..n).collect())
+    }
+
+    fn find(&mut self, mut x: usize) -> usize {
+        while self.0[x] != x {
+            self.0[x] = self.0[self.0[x]];
+            x = self.0[x];
+        }
+        x
+    }
+
+    fn join(&mut self, a: usize, b: usize) {
+        let (a, b) = (self.find(a), self.find(b));
+        self.0[a.max(b)] = a.min(b);
+    }
+}
+
+/// Pairs of movable bodies that hold each other: constraints, and contacts in `pairs`.
+fn links<'a>(
+    bodies: &'a [RigidBody],
+    constraints: &'a [DistanceConstraint],
+    pairs: impl Iterator<Item = (usize, usize)> + 'a,
+) -> impl Iterator<Item = (usize, usize)> + 'a {
+    constraints
+        .iter()
+        .map(|c| (c.body1, c.body2))
+        .chain(pairs)
+        .filter(move |&(i, j)| {
+            i != GROUND && bodies[i].is_dynamic() && bodies[j].is_dynamic()
+        })
+}
+
+/// Updates sleep timers after a step of `dt` from the poses it began at (`start`), then puts to sleep every island of awake bodies
+/// (joined by `touching` pairs and constraints) whose bodies all rested long enough.
+pub fn settle(
+    bodies: &mut [RigidBody],
+    radii: &[f64],
+    start: &[(glam::DVec3, glam::DQuat)],
+    constraints: &[DistanceConstraint],
+    touching: impl Iterator<Item = (usize, usize)>,
+    dt: f64,
+) {
+    for (b, &(p0, q0)) in bodies.iter_mut().zip(start).filter(|(b, _)| b.is_awake()) {
+        let turn = (q0.conjugate() * b.orientation).normalize();
+        let angle = 2.0 * turn.xyz().length().atan2(turn.w.abs());
+        let speed = ((b.position - p0).length() + angle * radii[b.shape]) / dt;
+        b.sleep_time = if speed < SLEEP_SPEED {
+            b.sleep_time + dt
+        } else {
+            0.0
+        };
+    }
+    let mut islands = Islands::new(bodies.len());
+    let pairs: Vec<(usize, usize)> = links(bodies, constraints, touching).collect();
+    for &(i, j) in &pairs {
+        islands.join(i, j);
+    }
+    // An island rests when its least rested body does.
+    let mut least = vec![f64::INFINITY; bodies.len()];
+    for (i, b) in bodies.iter().enumerate().filter(|(_, b)| b.is_dynamic()) {
+        let root = islands.find(i);
+        let rest = if b.asleep { f64::INFINITY } else { b.sleep_time };
+        least[root] = least[root].min(rest);
+    }
+    for i in 0..bodies.len() {
+        let root = islands.find(i);
+        let b = &mut bodies[i];
+        if b.is_awake() && least[root] >= TIME_TO_SLEEP {
+            b.asleep = true;
+            b.linear_velocity = glam::DVec3::ZERO;
+            b.angular_velocity = glam::DVec3::ZERO;
+        }
+    }
+}
+
+/// Wakes every sleeping body reachable from a sleeping body in `seeds` through `links`
+/// (last step's touching pairs and the constraints).
+pub fn wake(
+    bodies: &mut [RigidBody],
+    constraints: &[DistanceConstraint],
+    touching: impl Iterator<Item = (usize, usize)>,
+    seeds: impl Iterator<Item = usize>,
+) -> bool {
+    let mut stack: Vec<usize> = seeds.filter(|&i| bodies[i].asleep).collect();
+    if stack.is_empty() {
+        return false;
+    }
+    let pairs: Vec<(usize, usize)> = links(bodies, constraints, touching).collect();
+    let mut neighbours: Vec<Vec<usize>> = vec![Vec::new(); bodies.len()];
+    for &(i, j) in &pairs {
+        neighbours[i].push(j);
+        neighbours[j].push(i);
+    }
+    while let Some(i) = stack.pop() {
+        if !bodies[i].asleep {
+            continue;
+        }
+        bodies[i].asleep = false;
+        bodies[i].sleep_time = 0.0;
+        stack.extend(neighbours[i].iter().copied().filter(|&j| bodies[j].asleep));
+    }
+    true
+}
+
+/// Sleeping bodies that this step's candidate pairs bring next to an awake body (their boxes,
+/// grown by how far the awake one can travel, overlap), and sleeping bodies constrained to an
+/// awake one.
+pub fn disturbed(
+    bodies: &[RigidBody],
+    constraints: &[DistanceConstraint],
+    pairs: &[(u32, u32)],
+) -> Vec<usize> {
+    let mut out = Vec::new();
+    let pairs = pairs.iter().map(|&(i, j)| (i as usize, j as usize));
+    let constrained = constraints.iter().map(|c| (c.body1, c.body2));
+    for (i, j) in pairs.chain(constrained) {
+        let (a, b) = (&bodies[i], &bodies[j]);
+        if a.asleep && b.is_awake() {
+            out.push(i);
+        } else if b.asleep && a.is_awake() {
+            out.push(j);
+        }
+    }
+    out
+}
+
+/// The pairs of `manifolds` whose points hold the bodies together (touching, not merely
+/// speculative).
+pub fn touching_pairs(manifolds: &[Manifold]) -> impl Iterator<Item = (usize, usize)> + '_ {
+    manifolds
+        .iter()
+        .filter(|m| m.points().iter().any(|p| p.separation <= 0.0))
+        .map(|m| (m.body1, m.body2))
+}
