@@ -72,7 +72,10 @@ fn resting_box_and_stack_do_not_move() {
                 ..accurate(dt)
             };
             let drift = drift_after_settling(&mut boxes(stack, awake), 0.05);
-            assert!(drift < 1e-3, "dt {dt}, stack of {stack} awake: moved {drift}");
+            assert!(
+                drift < 1e-3,
+                "dt {dt}, stack of {stack} awake: moved {drift}"
+            );
         }
     }
 }

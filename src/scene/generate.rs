@@ -51,52 +51,83 @@ fn shape_of(mesh: &crate::io::TetMesh) -> Shape {
 }
 
 /// `sparse-N`: boxes and tetrahedra alternating, density 100, small tilts, in a square grid of
-/// columns over x, z in [-200, 200] on 4 layers at y = 10, 73, 137, 200. No constraints.
+/// columns over x, z in [-200, 200] on 4 layers at y = 10, 73, 137, 200. No constraints. The
+/// square stays the same as N grows, so the scene grows denser (the coursework comparison).
 pub fn sparse(n: usize, settings: Settings) -> World {
     let shapes = vec![
         shape_of(&assets::cuboid(DVec3::new(6.0, 3.0, 4.0))),
         shape_of(&assets::tetrahedron(6.0)),
     ];
-    let layers = [10.0, 73.0, 137.0, 200.0];
-    let per_layer = n.div_ceil(layers.len()).max(1);
-    let side = (per_layer as f64).sqrt().ceil().max(1.0) as usize;
+    let side = layer_side(n);
     let spacing = if side > 1 {
         400.0 / (side - 1) as f64
     } else {
         0.0
     };
-    let mut rng = Rng::new(0x5EED_0001);
+    let names = vec!["box".into(), "tetrahedron".into()];
+    let grid = (-200.0, spacing);
+    layered(n, (shapes, names), grid, 0x5EED_0001, settings)
+}
+
+/// The spacing of `sparse-1000`'s columns (400 / 15), kept by `scatter-N` at every N.
+pub const SCATTER_SPACING: f64 = 400.0 / 15.0;
+
+/// `scatter-N`: boxes, tetrahedra and octahedra in turn, laid out as `sparse-N` is but always
+/// [`SCATTER_SPACING`] apart, the square growing with N: the same density of bodies at every
+/// size, so the cost per body should stay flat.
+pub fn scatter(n: usize, settings: Settings) -> World {
+    let shapes = vec![
+        shape_of(&assets::cuboid(DVec3::new(6.0, 3.0, 4.0))),
+        shape_of(&assets::tetrahedron(6.0)),
+        shape_of(&assets::octahedron(DVec3::splat(5.0))),
+    ];
+    let names = vec!["box".into(), "tetrahedron".into(), "octahedron".into()];
+    let grid = (
+        -0.5 * SCATTER_SPACING * (layer_side(n) - 1) as f64,
+        SCATTER_SPACING,
+    );
+    layered(n, (shapes, names), grid, 0x5EED_0004, settings)
+}
+
+/// Columns per side of a layer when `n` bodies fill 4 square layers.
+fn layer_side(n: usize) -> usize {
+    let per_layer = n.div_ceil(4).max(1);
+    (per_layer as f64).sqrt().ceil().max(1.0) as usize
+}
+
+/// `n` bodies, density 100, small random tilts, the shapes in turn, in square layers of columns
+/// at x, z = `origin + spacing * k` on 4 layers at y = 10, 73, 137, 200.
+fn layered(
+    n: usize,
+    (shapes, names): (Vec<Shape>, Vec<String>),
+    (origin, spacing): (f64, f64),
+    seed: u64,
+    settings: Settings,
+) -> World {
+    let layers = [10.0, 73.0, 137.0, 200.0];
+    let per_layer = n.div_ceil(layers.len()).max(1);
+    let side = layer_side(n);
+    let mut rng = Rng::new(seed);
     let mut bodies = Vec::with_capacity(n);
-    'outer: for &y in &layers {
-        for i in 0..side {
-            for k in 0..side {
-                if bodies.len() == n || (i * side + k) >= per_layer {
-                    if bodies.len() == n {
-                        break 'outer;
-                    }
-                    continue;
-                }
-                let shape = bodies.len() % 2;
-                let position =
-                    DVec3::new(-200.0 + spacing * i as f64, y, -200.0 + spacing * k as f64);
-                bodies.push(RigidBody::on_shape(
-                    &shapes[shape],
-                    shape,
-                    100.0,
-                    false,
-                    position,
-                    rng.tilt(0.3),
-                ));
+    for &y in &layers {
+        for cell in 0..per_layer.min(side * side) {
+            if bodies.len() == n {
+                break;
             }
+            let (i, k) = (cell / side, cell % side);
+            let shape = bodies.len() % shapes.len();
+            let position = DVec3::new(origin + spacing * i as f64, y, origin + spacing * k as f64);
+            bodies.push(RigidBody::on_shape(
+                &shapes[shape],
+                shape,
+                100.0,
+                false,
+                position,
+                rng.tilt(0.3),
+            ));
         }
     }
-    World::new(
-        shapes,
-        vec!["box".into(), "tetrahedron".into()],
-        bodies,
-        Vec::new(),
-        settings,
-    )
+    World::new(shapes, names, bodies, Vec::new(), settings)
 }
 
 /// `pile-N`: N mixed bodies dropped close together into a square bin of four fixed walls, so
@@ -212,10 +243,11 @@ pub fn chain(n: usize, settings: Settings) -> World {
     World::new(shapes, vec!["box".into()], bodies, constraints, settings)
 }
 
-/// Generated scene by name: `sparse`, `pile` or `chain`.
+/// Generated scene by name: `sparse`, `scatter`, `pile` or `chain`.
 pub fn by_name(name: &str, n: usize, settings: Settings) -> Option<World> {
     match name {
         "sparse" => Some(sparse(n, settings)),
+        "scatter" => Some(scatter(n, settings)),
         "pile" => Some(pile(n, settings)),
         "chain" => Some(chain(n, settings)),
         _ => None,

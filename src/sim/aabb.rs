@@ -12,6 +12,12 @@ pub struct Aabb {
 }
 
 impl Aabb {
+    /// Contains nothing and overlaps nothing.
+    pub const EMPTY: Aabb = Aabb {
+        min: DVec3::INFINITY,
+        max: DVec3::NEG_INFINITY,
+    };
+
     pub fn overlaps(&self, other: &Aabb) -> bool {
         self.min.cmple(other.max).all() && other.min.cmple(self.max).all()
     }
@@ -19,6 +25,14 @@ impl Aabb {
     /// Whether `inner` lies inside this box.
     pub fn contains(&self, inner: &Aabb) -> bool {
         self.min.cmple(inner.min).all() && inner.max.cmple(self.max).all()
+    }
+
+    /// The smallest box containing both.
+    pub fn union(&self, other: &Aabb) -> Aabb {
+        Aabb {
+            min: self.min.min(other.min),
+            max: self.max.max(other.max),
+        }
     }
 
     /// The box grown by `margin` on every side.

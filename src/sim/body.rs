@@ -3,13 +3,11 @@
 use super::shape::Shape;
 use glam::{DMat3, DQuat, DVec3};
 
+/// The fields every stage reads come first, in two cache lines (`repr(C)` keeps the order):
+/// the loops over all bodies at scale are bound by memory, not arithmetic.
 #[derive(Debug, Clone, PartialEq)]
+#[repr(C)]
 pub struct RigidBody {
-    /// Index of the body's shape in [`crate::World::shapes`].
-    pub shape: usize,
-    pub density: f64,
-    /// Fixed bodies have zero inverse mass and inverse inertia and never move.
-    pub fixed: bool,
     /// Centre of mass in world space (the coursework's `COM`).
     pub position: DVec3,
     /// Unit quaternion from body to world space.
@@ -17,12 +15,8 @@ pub struct RigidBody {
     pub linear_velocity: DVec3,
     /// World-space angular velocity.
     pub angular_velocity: DVec3,
-    pub mass: f64,
-    pub inverse_mass: f64,
-    /// Inertia tensor about the centre of mass, body frame.
-    pub inertia: DMat3,
-    /// Inverse inertia tensor, body frame (the coursework's `invIT`).
-    pub inverse_inertia: DMat3,
+    /// Fixed bodies have zero inverse mass and inverse inertia and never move.
+    pub fixed: bool,
     /// Set when the body's state went non-finite or absurd. From then on it is a fixed body at
     /// its last finite pose: it never moves, other bodies' contacts ignore it (it may sit inside
     /// them), and its distance constraints hold their other body to it as to a fixed anchor.
@@ -32,6 +26,15 @@ pub struct RigidBody {
     pub asleep: bool,
     /// Seconds the body has moved slower than the sleep threshold (soft-step solver).
     pub sleep_time: f64,
+    pub inverse_mass: f64,
+    /// Index of the body's shape in [`crate::World::shapes`].
+    pub shape: usize,
+    pub density: f64,
+    pub mass: f64,
+    /// Inertia tensor about the centre of mass, body frame.
+    pub inertia: DMat3,
+    /// Inverse inertia tensor, body frame (the coursework's `invIT`).
+    pub inverse_inertia: DMat3,
 }
 
 impl RigidBody {

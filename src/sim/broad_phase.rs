@@ -7,9 +7,11 @@
 
 use super::aabb::{Aabb, body_aabb};
 use super::body::RigidBody;
+use super::cell_list::CellList;
 use super::grid::{Grid, typical_cell_size};
 use super::pair_queue::PairQueue;
 use super::shape::Shape;
+use glam::{DQuat, DVec3};
 use rayon::prelude::*;
 
 #[derive(Debug, Clone, Default)]
@@ -20,6 +22,12 @@ pub struct BroadPhase {
     /// The fattened boxes the grid holds (each contains its body's box).
     proxies: Vec<Aabb>,
     neighbours: Vec<u32>,
+    /// Which bodies the soft step moves this step.
+    is_awake: Vec<bool>,
+    /// The pose each body's box was last computed at.
+    placed: Vec<Option<(DVec3, DQuat)>>,
+    /// The soft step's grid, rebuilt every step.
+    cells: CellList,
 }
 
 impl BroadPhase {
@@ -66,6 +74,8 @@ impl BroadPhase {
         tested: &mut usize,
     ) -> PairQueue {
         let active: Vec<bool> = bodies.iter().map(|b| !b.quarantined).collect();
+        // The soft step's grid is rebuilt from scratch after this one.
+        self.placed.clear();
         self.proxies = (0..bodies.len())
             .map(|i| self.proxy_of(i, &bodies[i], shapes))
             .collect();
@@ -73,27 +83,55 @@ impl BroadPhase {
         PairQueue::new(self.grid.overlapping_pairs(&self.proxies, keep, tested))
     }
 
-    /// For the soft-step solver: each body's box grown by `margins[i]` (how far it can travel in
-    /// the step) goes into the grid, and the pairs (i < j, sorted) whose grown boxes overlap and
-    /// for which `keep(i, j)` come back. `tested` counts box tests.
+    /// For the soft-step solver: each awake body's box grown by `margins[i]` (how far it can
+    /// travel in the step) goes into the grid, and the pairs (i < j, sorted) whose grown boxes
+    /// overlap, at least one body awake, and for which `keep(i, j)` come back. The grid is kept
+    /// from step to step: a body that is not awake keeps its box until its pose changes (a
+    /// rewind, an edit) and costs nothing. `tested` counts box tests.
     pub fn speculative_pairs(
         &mut self,
         bodies: &[RigidBody],
         shapes: &[Shape],
         margins: &[f64],
-        keep: impl Fn(usize, usize) -> bool,
+        keep: impl Fn(usize, usize) -> bool + Sync,
         tested: &mut usize,
     ) -> Vec<(u32, u32)> {
-        self.update_boxes(bodies, shapes);
+        let n = bodies.len();
+        if self.aabbs.len() != n || self.proxies.len() != n || self.placed.len() != n {
+            self.aabbs.clear();
+            self.aabbs.resize(n, Aabb::EMPTY);
+            self.proxies.clear();
+            self.proxies.resize(n, Aabb::EMPTY);
+            self.placed.clear();
+            self.placed.resize(n, None);
+        }
+        (&mut self.aabbs, &mut self.proxies, &mut self.placed)
+            .into_par_iter()
+            .zip((bodies, margins))
+            .with_min_len(256)
+            .for_each(|((aabb, proxy, placed), (b, &m))| {
+                let pose = Some((b.position, b.orientation));
+                if b.is_awake() || *placed != pose {
+                    *aabb = body_aabb(b, &shapes[b.shape]);
+                    *proxy = aabb.fattened(m);
+                    *placed = pose;
+                }
+            });
+        self.is_awake.clear();
+        self.is_awake.extend(bodies.iter().map(|b| b.is_awake()));
         let active: Vec<bool> = bodies.iter().map(|b| !b.quarantined).collect();
-        self.proxies = self
-            .aabbs
-            .iter()
-            .zip(margins)
-            .map(|(b, &m)| b.fattened(m))
-            .collect();
-        self.grid.rebuild(&self.proxies, &active);
-        self.grid.overlapping_pairs(&self.proxies, keep, tested)
+        let cell = self.grid.cell_size();
+        let (pairs, count) = if self.cells.build(&self.proxies, &active, cell, 8 * n + 4096) {
+            self.cells
+                .pairs_with_awake(&self.is_awake, &self.proxies, keep)
+        } else {
+            // Boxes spread too far for a dense grid: the hash grid, built afresh.
+            self.grid.rebuild(&self.proxies, &active);
+            self.grid
+                .pairs_with_awake(&self.is_awake, &self.proxies, keep)
+        };
+        *tested += count;
+        pairs
     }
 
     /// Body `index` was moved while the loop stood at some pair: its box is refreshed, and if it

@@ -3,6 +3,7 @@
 
 use super::aabb::Aabb;
 use glam::DVec3;
+use rayon::prelude::*;
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
@@ -11,8 +12,14 @@ use std::hash::{BuildHasherDefault, Hasher};
 pub struct CellHasher(u64);
 
 impl Hasher for CellHasher {
+    /// The multiply leaves the low bits depending on the key's low bits only (the z cell),
+    /// and the table indexes by the low bits: every cell of a column would share a bucket.
+    /// MurmurHash3's finaliser mixes the high bits down.
     fn finish(&self) -> u64 {
-        self.0
+        let mut h = self.0;
+        h ^= h >> 33;
+        h = h.wrapping_mul(0xff51_afd7_ed55_8ccd);
+        h ^ (h >> 33)
     }
     fn write(&mut self, bytes: &[u8]) {
         for &b in bytes {
@@ -35,9 +42,12 @@ const MAX_CELLS_PER_AXIS: i64 = 8;
 pub struct Grid {
     cell_size: f64,
     cells: CellMap,
-    /// Cell range (min, max corner) each body was inserted with; None for oversized bodies.
+    /// Cell range (min, max corner) each body was inserted with; None for oversized bodies
+    /// and bodies not in the grid.
     ranges: Vec<Option<([i64; 3], [i64; 3])>>,
     oversized: Vec<u32>,
+    /// Keys of the cells holding two bodies or more.
+    crowded: std::collections::HashSet<u64, BuildHasherDefault<CellHasher>>,
     stamp: Vec<u32>,
     epoch: u32,
 }
@@ -105,6 +115,7 @@ impl Grid {
             list.clear();
             keep
         });
+        self.crowded.clear();
         self.oversized.clear();
         self.ranges.clear();
         self.ranges.resize(aabbs.len(), None);
@@ -116,13 +127,35 @@ impl Grid {
         }
     }
 
+    fn take_out(&mut self, index: usize) {
+        match self.ranges[index] {
+            Some(range) => {
+                let (cells, crowded) = (&mut self.cells, &mut self.crowded);
+                Self::for_cells(range, |key| {
+                    if let Some(list) = cells.get_mut(&key) {
+                        list.retain(|&b| b as usize != index);
+                        if list.len() < 2 {
+                            crowded.remove(&key);
+                        }
+                    }
+                });
+            }
+            None => self.oversized.retain(|&b| b as usize != index),
+        }
+        self.ranges[index] = None;
+    }
+
     fn insert(&mut self, index: usize, aabb: &Aabb) {
         match self.range(aabb) {
             Some(range) => {
                 self.ranges[index] = Some(range);
-                let cells = &mut self.cells;
+                let (cells, crowded) = (&mut self.cells, &mut self.crowded);
                 Self::for_cells(range, |key| {
-                    cells.entry(key).or_default().push(index as u32)
+                    let list = cells.entry(key).or_default();
+                    list.push(index as u32);
+                    if list.len() == 2 {
+                        crowded.insert(key);
+                    }
                 });
             }
             None => self.oversized.push(index as u32),
@@ -136,18 +169,7 @@ impl Grid {
         if new_range.is_some() && new_range == old_range {
             return;
         }
-        match old_range {
-            Some(range) => {
-                let cells = &mut self.cells;
-                Self::for_cells(range, |key| {
-                    if let Some(list) = cells.get_mut(&key) {
-                        list.retain(|&b| b as usize != index);
-                    }
-                });
-            }
-            None => self.oversized.retain(|&b| b as usize != index),
-        }
-        self.ranges[index] = None;
+        self.take_out(index);
         self.insert(index, aabb);
     }
 
@@ -187,6 +209,70 @@ impl Grid {
         pairs.sort_unstable();
         pairs.dedup();
         pairs
+    }
+
+    /// Every pair (i < j, sorted, each once) of bodies in the grid whose boxes overlap, at least
+    /// one of them `awake`, and for which `keep(i, j)`. Only cells holding two bodies or more
+    /// are visited (kept as a set while bodies are inserted), in parallel. Returns the pairs
+    /// and the number of box tests.
+    pub fn pairs_with_awake(
+        &self,
+        awake: &[bool],
+        aabbs: &[Aabb],
+        keep: impl Fn(usize, usize) -> bool + Sync,
+    ) -> (Vec<(u32, u32)>, usize) {
+        let crowded: Vec<u64> = self.crowded.iter().copied().collect();
+        let consider = |a: usize, b: usize, (pairs, tested): &mut (Vec<(u32, u32)>, usize)| {
+            *tested += 1;
+            let (i, j) = (a.min(b), a.max(b));
+            if (awake[i] || awake[j]) && aabbs[i].overlaps(&aabbs[j]) && keep(i, j) {
+                pairs.push((i as u32, j as u32));
+            }
+        };
+        let in_cells = crowded.par_chunks(64).map(|keys| {
+            let mut found = (Vec::new(), 0);
+            for &key in keys {
+                let list = &self.cells[&key];
+                for (k, &a) in list.iter().enumerate() {
+                    for &b in &list[k + 1..] {
+                        if self.first_shared_cell(a as usize, b as usize) == key {
+                            consider(a as usize, b as usize, &mut found);
+                        }
+                    }
+                }
+            }
+            found
+        });
+        let with_oversized = self.oversized.par_iter().map(|&o| {
+            let mut found = (Vec::new(), 0);
+            for (b, range) in self.ranges.iter().enumerate() {
+                if range.is_some() {
+                    consider(o as usize, b, &mut found);
+                }
+            }
+            // A pair of two oversized bodies is tested from the lower one.
+            for &b in self.oversized.iter().filter(|&&b| b > o) {
+                consider(o as usize, b as usize, &mut found);
+            }
+            found
+        });
+        let chunks: Vec<(Vec<(u32, u32)>, usize)> = in_cells.chain(with_oversized).collect();
+        let tested = chunks.iter().map(|c| c.1).sum();
+        let mut pairs: Vec<(u32, u32)> = chunks.into_iter().flat_map(|c| c.0).collect();
+        pairs.sort_unstable();
+        pairs.dedup();
+        (pairs, tested)
+    }
+
+    /// The key of the first cell (lowest corner) two bodies' cell ranges share: the one cell
+    /// whose visit reports them.
+    fn first_shared_cell(&self, a: usize, b: usize) -> u64 {
+        let (lo_a, lo_b) = (self.ranges[a], self.ranges[b]);
+        let (Some((lo_a, _)), Some((lo_b, _))) = (lo_a, lo_b) else {
+            return u64::MAX;
+        };
+        let first = [0, 1, 2].map(|k| lo_a[k].max(lo_b[k]));
+        Self::key(first[0], first[1], first[2])
     }
 
     /// Bodies (other than `index`) whose boxes overlap `aabbs[index]`, in ascending order.

@@ -42,6 +42,8 @@ pub fn integrate_pose(
             body.angular_velocity = gyroscopic_step(body, dt);
             body.orientation = rotate_by(body.orientation, body.angular_velocity, dt);
         }
+        // Without spin there is nothing to turn (skipped: free fall at scale is mostly this).
+        RotationIntegrator::AngularMomentum if body.angular_velocity == DVec3::ZERO => {}
         RotationIntegrator::AngularMomentum => {
             // Torque-free: world angular momentum L is constant over the step. Rotate by the
             // angular velocity at the half-step orientation (explicit midpoint, second order),

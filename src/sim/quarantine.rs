@@ -4,6 +4,7 @@
 
 use super::body::RigidBody;
 use glam::{DQuat, DVec3};
+use rayon::prelude::*;
 
 /// Speeds above this are treated as a blown-up state and quarantined.
 pub const ABSURD_SPEED: f64 = 1e12;
@@ -26,22 +27,28 @@ impl Quarantine {
     }
 
     /// Freezes the bodies that blew up since the last check; returns their indices.
+    /// Sleeping bodies are skipped: the solver did not move them.
     pub fn check(&mut self, bodies: &mut [RigidBody], frozen: &mut Vec<usize>) {
-        for (index, body) in bodies.iter_mut().enumerate() {
-            if body.quarantined {
-                continue;
-            }
-            let absurd = body.linear_velocity.length() > ABSURD_SPEED
-                || body.angular_velocity.length() > ABSURD_SPEED;
-            if body.is_finite() && !absurd {
-                self.last_good[index] = (body.position, body.orientation);
-                continue;
-            }
-            (body.position, body.orientation) = self.last_good[index];
-            body.linear_velocity = DVec3::ZERO;
-            body.angular_velocity = DVec3::ZERO;
-            body.quarantined = true;
-            frozen.push(index);
-        }
+        frozen.par_extend(
+            bodies
+                .par_iter_mut()
+                .zip(self.last_good.par_iter_mut())
+                .enumerate()
+                .with_min_len(1024)
+                .filter(|(_, (body, _))| !body.quarantined && !body.asleep)
+                .filter_map(|(index, (body, last_good))| {
+                    let absurd = body.linear_velocity.length() > ABSURD_SPEED
+                        || body.angular_velocity.length() > ABSURD_SPEED;
+                    if body.is_finite() && !absurd {
+                        *last_good = (body.position, body.orientation);
+                        return None;
+                    }
+                    (body.position, body.orientation) = *last_good;
+                    body.linear_velocity = DVec3::ZERO;
+                    body.angular_velocity = DVec3::ZERO;
+                    body.quarantined = true;
+                    Some(index)
+                }),
+        );
     }
 }

@@ -436,7 +436,10 @@ impl HeldImpulses {
         self.friction.clear();
         self.friction.extend(constraints.iter_mut().map(|c| {
             let f = &mut c.friction;
-            let held = (f.tangent_impulse.map(|t| fraction * t), fraction * f.twist_impulse);
+            let held = (
+                f.tangent_impulse.map(|t| fraction * t),
+                fraction * f.twist_impulse,
+            );
             f.tangent_impulse = [0, 1].map(|k| f.tangent_impulse[k] - held.0[k]);
             f.twist_impulse -= held.1;
             held

@@ -56,6 +56,7 @@ pub struct SoftStep {
     /// Bounding radius of each shape (for the speculative margin of spinning bodies).
     radii: Vec<f64>,
     blocks: JointBlocks,
+    islands: sleep::Islands,
     /// The settings of the last step: a change wakes every sleeping body.
     last_settings: Option<crate::sim::Settings>,
     work: Workspace,
@@ -77,6 +78,15 @@ struct Workspace {
     large_groups: Vec<usize>,
     held: HeldImpulses,
     held_rows: Vec<f64>,
+    /// The bodies the solver sees this step: every body in a manifold or a constraint, and
+    /// the grabbed one (ascending; fixed ones included, as static solver bodies).
+    solved: Vec<usize>,
+    /// The awake ones among `solved`: those the substeps integrate.
+    moving: Vec<usize>,
+    /// Marks of `solved` by body index (cleared after use).
+    in_solver: Vec<bool>,
+    /// Awake bodies that nothing touches or holds: integrated on their own, in parallel.
+    free: Vec<bool>,
 }
 
 impl Workspace {
@@ -194,17 +204,14 @@ impl SoftStep {
         // Velocity Verlet: half a kick of gravity, then full kicks between the substeps' drifts
         // (symplectic Euler on the half-step velocities), and the last half kick at the end, so
         // free flight under gravity is exact and the velocities kept are those of the step's end.
-        let kick_by = |dt: f64| dt * ctx.settings.gravity;
+        let kicks = Kicks::new(ctx.settings.gravity, substeps.h);
         watch.enter(Stage::Integrate);
-        kick(
-            scene.bodies,
-            &mut self.work.bodies,
-            kick_by(0.5 * substeps.h),
-        );
+        integrate_free(ctx, scene.bodies, &self.work.free, &substeps, &kicks);
+        self.work.kick(kicks.half);
         for k in 0..substeps.count {
             if k > 0 {
                 watch.enter(Stage::Integrate);
-                kick(scene.bodies, &mut self.work.bodies, kick_by(substeps.h));
+                self.work.kick(kicks.full);
             }
             if let Some(grab) = scene.grab {
                 pull(grab, scene.bodies, &mut self.work.bodies, substeps.h);
@@ -218,11 +225,7 @@ impl SoftStep {
             }
         }
         watch.enter(Stage::Integrate);
-        kick(
-            scene.bodies,
-            &mut self.work.bodies,
-            kick_by(0.5 * substeps.h),
-        );
+        self.work.kick(kicks.half);
         watch.enter(Stage::Solve);
         self.final_pass(scene.bodies, &substeps);
         self.finish(ctx, (scene.bodies, scene.constraints), stats);
@@ -243,7 +246,12 @@ impl SoftStep {
             }
         } else if let Some(grab) = scene.grab {
             let touching = self.contacts.pairs();
-            sleep::wake(bodies, scene.constraints, touching, std::iter::once(grab.body));
+            sleep::wake(
+                bodies,
+                scene.constraints,
+                touching,
+                std::iter::once(grab.body),
+            );
         }
     }
 
@@ -327,25 +335,68 @@ impl SoftStep {
         }
     }
 
-    /// Solver bodies, start poses and energies, contact constraints and joint groups.
+    /// The bodies the solver must see (see [`Workspace::solved`]), and the free ones.
+    fn select_bodies(&mut self, scene: &Scene) {
+        let (bodies, constraints) = (&*scene.bodies, scene.constraints);
+        let w = &mut self.work;
+        w.in_solver.resize(bodies.len(), false);
+        w.solved.clear();
+        let touched = w.manifolds.iter().flat_map(|m| [m.body1, m.body2]);
+        let held = constraints.iter().flat_map(|c| [c.body1, c.body2]);
+        let grabbed = scene.grab.map(|g| g.body);
+        for i in touched.chain(held).chain(grabbed) {
+            if i < bodies.len() && !w.in_solver[i] {
+                w.in_solver[i] = true;
+                w.solved.push(i);
+            }
+        }
+        w.solved.sort_unstable();
+        w.moving.clear();
+        w.moving
+            .extend(w.solved.iter().copied().filter(|&i| bodies[i].is_awake()));
+        w.free.clear();
+        w.free.extend(
+            bodies
+                .iter()
+                .zip(&w.in_solver)
+                .map(|(b, &solved)| b.is_awake() && !solved),
+        );
+        for &i in &w.solved {
+            w.in_solver[i] = false;
+        }
+    }
+
+    /// Solver bodies, start poses and energies, contact constraints and joint groups. Only the
+    /// entries of the bodies the solver sees are written (and the start poses of the free ones,
+    /// for sleeping): the others are never read.
     fn prepare(&mut self, ctx: &StepContext, scene: &Scene, substeps: &Substeps) {
+        self.select_bodies(scene);
         let (bodies, constraints) = (&*scene.bodies, scene.constraints);
         let work = &mut self.work;
-        work.bodies.clear();
-        work.bodies.extend(bodies.iter().map(SolverBody::new));
-        work.bodies.push(SolverBody::STATIC); // the ground
-        work.start.clear();
-        work.start
-            .extend(bodies.iter().map(|b| (b.position, b.orientation)));
+        let n = bodies.len();
+        work.bodies.resize(n + 1, SolverBody::STATIC);
+        work.bodies[n] = SolverBody::STATIC; // the ground
+        work.start.resize(n, (DVec3::ZERO, DQuat::IDENTITY));
+        work.start_energy.resize(n, 0.0);
         let g = ctx.settings.gravity;
-        work.start_energy.clear();
-        work.start_energy.extend(bodies.iter().map(|b| {
-            if b.is_awake() {
+        for &i in &work.solved {
+            let b = &bodies[i];
+            work.bodies[i] = SolverBody::new(b);
+            work.start[i] = (b.position, b.orientation);
+            work.start_energy[i] = if b.is_awake() {
                 restitution::energy(b, b.linear_velocity, b.angular_velocity, g)
             } else {
                 0.0
-            }
-        }));
+            };
+        }
+        for (start, (b, _)) in work
+            .start
+            .iter_mut()
+            .zip(bodies.iter().zip(&work.free))
+            .filter(|(_, (_, free))| **free)
+        {
+            *start = (b.position, b.orientation);
+        }
         contact_solver::prepare(
             &work.manifolds,
             &work.start,
@@ -381,10 +432,10 @@ impl SoftStep {
         self.solve_pass(bodies, substeps, Pass::Soft);
         watch.enter(Stage::Integrate);
         let w = &mut self.work;
-        integrate_positions(ctx, bodies, &mut w.bodies, &w.start, substeps.h);
+        w.integrate_positions(ctx, bodies, substeps.h);
         watch.enter(Stage::Solve);
         if self.blocks.project_positions(bodies, &w.bodies) {
-            update_deltas(bodies, &mut w.bodies, &w.start);
+            w.update_deltas(bodies);
         }
         self.relax(bodies, substeps, Pass::Relax);
     }
@@ -438,7 +489,11 @@ impl SoftStep {
         stats: &mut StepStats,
     ) {
         let w = &mut self.work;
-        w.before_restitution.clone_from(&w.bodies);
+        w.before_restitution
+            .resize(w.bodies.len(), SolverBody::STATIC);
+        for &i in &w.solved {
+            w.before_restitution[i] = w.bodies[i];
+        }
         restitution::apply(&w.contacts, &mut w.points, &mut w.bodies);
         let rule = restitution::EnergyRule {
             restitution: ctx.settings.restitution,
@@ -458,18 +513,25 @@ impl SoftStep {
             &w.start_energy,
             &rule,
         );
-        for (body, sb) in bodies.iter_mut().zip(&w.bodies) {
-            if body.is_awake() {
-                body.linear_velocity = sb.linear_velocity;
-                body.angular_velocity = sb.angular_velocity;
-            }
+        for &i in &w.moving {
+            bodies[i].linear_velocity = w.bodies[i].linear_velocity;
+            bodies[i].angular_velocity = w.bodies[i].angular_velocity;
         }
         if ctx.settings.sleep {
             let touching = sleep::touching_pairs(&w.manifolds);
-            sleep::settle(bodies, &self.radii, &w.start, constraints, touching, ctx.settings.time_step);
+            sleep::settle(
+                &mut self.islands,
+                bodies,
+                &self.radii,
+                &w.start,
+                constraints,
+                touching,
+                ctx.settings.time_step,
+            );
         }
         stats.asleep = bodies.iter().filter(|b| b.asleep).count();
-        self.contacts.store(&w.manifolds, &w.contacts, &w.points, bodies);
+        self.contacts
+            .store(&w.manifolds, &w.contacts, &w.points, bodies);
         let count = w.rows.iter().map(|r| r.constraint + 1).max().unwrap_or(0);
         self.joint_impulses.clear();
         self.joint_impulses.resize(count, 0.0);
@@ -485,30 +547,6 @@ impl SoftStep {
     }
 }
 
-/// Poses from the solved velocities (by the world's rotation integrator), and each body's
-/// displacement since the step began for the contacts' separations.
-fn integrate_positions(
-    ctx: &StepContext,
-    bodies: &mut [RigidBody],
-    solver_bodies: &mut [SolverBody],
-    start: &[(DVec3, DQuat)],
-    h: f64,
-) {
-    let integrator = ctx.settings.rotation_integrator;
-    for ((body, sb), &(p0, q0)) in bodies.iter_mut().zip(solver_bodies.iter_mut()).zip(start) {
-        if !body.is_awake() {
-            continue;
-        }
-        body.linear_velocity = sb.linear_velocity;
-        body.angular_velocity = sb.angular_velocity;
-        integrate_pose(body, integrator, h, false);
-        // The angular-momentum integrator turns the angular velocity with the body.
-        sb.angular_velocity = body.angular_velocity;
-        sb.delta_position = body.position - p0;
-        sb.delta_rotation = manifold::delta_rotation(q0, body.orientation);
-    }
-}
-
 /// The grab's impulse over a substep, on the solver's velocities.
 fn pull(grab: &Grab, bodies: &[RigidBody], solver_bodies: &mut [SolverBody], h: f64) {
     let (Some(body), Some(sb)) = (bodies.get(grab.body), solver_bodies.get_mut(grab.body)) else {
@@ -520,20 +558,80 @@ fn pull(grab: &Grab, bodies: &[RigidBody], solver_bodies: &mut [SolverBody], h: 
     }
 }
 
-/// Adds `dv` (half a substep of gravity) to every movable body's velocity.
-fn kick(bodies: &[RigidBody], solver_bodies: &mut [SolverBody], dv: DVec3) {
-    for (sb, body) in solver_bodies.iter_mut().zip(bodies) {
-        if body.is_awake() {
-            sb.linear_velocity += dv;
+/// Gravity's velocity kicks of velocity Verlet: half a substep's at the ends of the step, a
+/// whole one's between substeps.
+struct Kicks {
+    half: DVec3,
+    full: DVec3,
+}
+
+impl Kicks {
+    fn new(gravity: DVec3, h: f64) -> Self {
+        Self {
+            half: (0.5 * h) * gravity,
+            full: h * gravity,
         }
     }
 }
 
-fn update_deltas(bodies: &[RigidBody], solver_bodies: &mut [SolverBody], start: &[(DVec3, DQuat)]) {
-    for ((body, sb), &(p0, q0)) in bodies.iter().zip(solver_bodies.iter_mut()).zip(start) {
-        if body.is_awake() {
+/// The substeps of the bodies nothing touches or holds, each on its own (in parallel): the
+/// same kicks and drifts, in the same order, as the solver gives the others, so a body's
+/// flight does not depend on whether it is solved.
+fn integrate_free(
+    ctx: &StepContext,
+    bodies: &mut [RigidBody],
+    free: &[bool],
+    substeps: &Substeps,
+    kicks: &Kicks,
+) {
+    let integrator = ctx.settings.rotation_integrator;
+    let h = substeps.h;
+    bodies
+        .par_iter_mut()
+        .zip(free.par_iter())
+        .with_min_len(512)
+        .filter(|(_, free)| **free)
+        .for_each(|(body, _)| {
+            body.linear_velocity += kicks.half;
+            for k in 0..substeps.count {
+                if k > 0 {
+                    body.linear_velocity += kicks.full;
+                }
+                integrate_pose(body, integrator, h, false);
+            }
+            body.linear_velocity += kicks.half;
+        });
+}
+
+impl Workspace {
+    /// Adds `dv` to the velocity of every body the substeps integrate.
+    fn kick(&mut self, dv: DVec3) {
+        for &i in &self.moving {
+            self.bodies[i].linear_velocity += dv;
+        }
+    }
+
+    /// Poses from the solved velocities (by the world's rotation integrator), and each body's
+    /// displacement since the step began for the contacts' separations.
+    fn integrate_positions(&mut self, ctx: &StepContext, bodies: &mut [RigidBody], h: f64) {
+        let integrator = ctx.settings.rotation_integrator;
+        for &i in &self.moving {
+            let (body, sb, (p0, q0)) = (&mut bodies[i], &mut self.bodies[i], self.start[i]);
+            body.linear_velocity = sb.linear_velocity;
+            body.angular_velocity = sb.angular_velocity;
+            integrate_pose(body, integrator, h, false);
+            // The angular-momentum integrator turns the angular velocity with the body.
+            sb.angular_velocity = body.angular_velocity;
             sb.delta_position = body.position - p0;
             sb.delta_rotation = manifold::delta_rotation(q0, body.orientation);
+        }
+    }
+
+    fn update_deltas(&mut self, bodies: &[RigidBody]) {
+        for &i in &self.moving {
+            let (body, (p0, q0)) = (&bodies[i], self.start[i]);
+            self.bodies[i].delta_position = body.position - p0;
+            self.bodies[i].delta_rotation = manifold::delta_rotation(q0, body.orientation);
         }
     }
 }

@@ -12,31 +12,42 @@
 use super::manifold::{GROUND, Manifold};
 use crate::sim::body::RigidBody;
 use crate::sim::constraint::DistanceConstraint;
+use rayon::prelude::*;
 
 /// Speed (units/s) under which a body counts as resting.
 pub const SLEEP_SPEED: f64 = 0.05;
 /// Seconds an island must rest before it sleeps.
 pub const TIME_TO_SLEEP: f64 = 0.5;
 
-/// Disjoint sets over body indices (union by smaller root, path halving).
-struct Islands(Vec<usize>);
+/// Disjoint sets over body indices (union by smaller root, path halving), with the buffers
+/// [`settle`] works in: kept from step to step, so a step allocates nothing.
+#[derive(Debug, Clone, Default)]
+pub struct Islands {
+    parent: Vec<usize>,
+    /// Least sleep time in each island (by root).
+    least: Vec<f64>,
+}
 
 impl Islands {
-    fn new(n: usize) -> Self {
-        Self((0..n).collect())
+    fn reset(&mut self, n: usize) {
+        self.parent.clear();
+        self.parent.extend(0..n);
+        self.least.clear();
+        self.least.resize(n, f64::INFINITY);
     }
 
     fn find(&mut self, mut x: usize) -> usize {
-        while self.0[x] != x {
-            self.0[x] = self.0[self.0[x]];
-            x = self.0[x];
+        let parent = &mut self.parent;
+        while parent[x] != x {
+            parent[x] = parent[parent[x]];
+            x = parent[x];
         }
         x
     }
 
     fn join(&mut self, a: usize, b: usize) {
         let (a, b) = (self.find(a), self.find(b));
-        self.0[a.max(b)] = a.min(b);
+        self.parent[a.max(b)] = a.min(b);
     }
 }
 
@@ -50,14 +61,14 @@ fn links<'a>(
         .iter()
         .map(|c| (c.body1, c.body2))
         .chain(pairs)
-        .filter(move |&(i, j)| {
-            i != GROUND && bodies[i].is_dynamic() && bodies[j].is_dynamic()
-        })
+        .filter(move |&(i, j)| i != GROUND && bodies[i].is_dynamic() && bodies[j].is_dynamic())
 }
 
-/// Updates sleep timers after a step of `dt` from the poses it began at (`start`), then puts to sleep every island of awake bodies
-/// (joined by `touching` pairs and constraints) whose bodies all rested long enough.
+/// Updates sleep timers after a step of `dt` from the poses it began at (`start`), then puts
+/// to sleep every island of awake bodies (joined by `touching` pairs and constraints) whose
+/// bodies all rested long enough.
 pub fn settle(
+    islands: &mut Islands,
     bodies: &mut [RigidBody],
     radii: &[f64],
     start: &[(glam::DVec3, glam::DQuat)],
@@ -65,32 +76,37 @@ pub fn settle(
     touching: impl Iterator<Item = (usize, usize)>,
     dt: f64,
 ) {
-    for (b, &(p0, q0)) in bodies.iter_mut().zip(start).filter(|(b, _)| b.is_awake()) {
-        let turn = (q0.conjugate() * b.orientation).normalize();
-        let angle = 2.0 * turn.xyz().length().atan2(turn.w.abs());
-        let speed = ((b.position - p0).length() + angle * radii[b.shape]) / dt;
-        b.sleep_time = if speed < SLEEP_SPEED {
-            b.sleep_time + dt
-        } else {
-            0.0
-        };
-    }
-    let mut islands = Islands::new(bodies.len());
-    let pairs: Vec<(usize, usize)> = links(bodies, constraints, touching).collect();
-    for &(i, j) in &pairs {
+    bodies
+        .par_iter_mut()
+        .zip(start.par_iter())
+        .with_min_len(1024)
+        .filter(|(b, _)| b.is_awake())
+        .for_each(|(b, &(p0, q0))| {
+            let turn = (q0.conjugate() * b.orientation).normalize();
+            let angle = 2.0 * turn.xyz().length().atan2(turn.w.abs());
+            let speed = ((b.position - p0).length() + angle * radii[b.shape]) / dt;
+            b.sleep_time = if speed < SLEEP_SPEED {
+                b.sleep_time + dt
+            } else {
+                0.0
+            };
+        });
+    islands.reset(bodies.len());
+    for (i, j) in links(bodies, constraints, touching) {
         islands.join(i, j);
     }
     // An island rests when its least rested body does.
-    let mut least = vec![f64::INFINITY; bodies.len()];
-    for (i, b) in bodies.iter().enumerate().filter(|(_, b)| b.is_dynamic()) {
+    for i in (0..bodies.len()).filter(|&i| bodies[i].is_awake()) {
         let root = islands.find(i);
-        let rest = if b.asleep { f64::INFINITY } else { b.sleep_time };
-        least[root] = least[root].min(rest);
+        islands.least[root] = islands.least[root].min(bodies[i].sleep_time);
     }
     for i in 0..bodies.len() {
+        if !bodies[i].is_awake() {
+            continue;
+        }
         let root = islands.find(i);
-        let b = &mut bodies[i];
-        if b.is_awake() && least[root] >= TIME_TO_SLEEP {
+        if islands.least[root] >= TIME_TO_SLEEP {
+            let b = &mut bodies[i];
             b.asleep = true;
             b.linear_velocity = glam::DVec3::ZERO;
             b.angular_velocity = glam::DVec3::ZERO;
