@@ -7,9 +7,10 @@
 //! on an incline walk down it a point at a time). Impulses are warm-started from the previous
 //! step: normal ones by feature key, friction by body pair.
 
+use super::constraint_graph::{Colours, Shared, with_pair};
 use super::manifold::{GROUND, MAX_POINTS, Manifold, ManifoldPoint};
 use super::softness::Softness;
-use super::solver_body::{SolverBody, pair_mut};
+use super::solver_body::SolverBody;
 use glam::{DQuat, DVec3};
 
 /// One direction `d` of a contact's Jacobian, kept for the step: the angular parts `r_i x d`
@@ -461,41 +462,55 @@ impl HeldImpulses {
 
 /// Applies the accumulated impulses (warm starting), once per substep.
 pub fn warm_start(
-    constraints: &[ContactConstraint],
-    points: &[ContactPoint],
+    colours: &Colours,
+    constraints: &mut [ContactConstraint],
+    points: &mut [ContactPoint],
     bodies: &mut [SolverBody],
 ) {
-    for c in constraints {
-        let (b1, b2) = pair_mut(bodies, c.body1, c.body2);
-        for p in &points[c.first..c.first + c.count] {
-            p.along_normal.apply(c.normal, p.normal_impulse, b1, b2);
+    let (bodies, points) = (Shared::new(bodies), Shared::new(points));
+    colours.for_each(constraints, |c| {
+        // SAFETY: within a colour a constraint's points and moving bodies are its own.
+        let contact_points = unsafe { points.slice(c.first..c.first + c.count) };
+        let pair = (c.body1, c.body2);
+        unsafe {
+            with_pair(&bodies, pair, |b1, b2| {
+                for p in contact_points.iter() {
+                    p.along_normal.apply(c.normal, p.normal_impulse, b1, b2);
+                }
+                let f = &c.friction;
+                for k in 0..2 {
+                    f.along_tangents[k].apply(f.tangents[k], f.tangent_impulse[k], b1, b2);
+                }
+                f.apply_twist(f.twist_impulse, b1, b2);
+            })
         }
-        let f = &c.friction;
-        for k in 0..2 {
-            f.along_tangents[k].apply(f.tangents[k], f.tangent_impulse[k], b1, b2);
-        }
-        f.apply_twist(f.twist_impulse, b1, b2);
-    }
+    });
 }
 
 /// One Gauss-Seidel pass over the contacts. In the soft pass penetration is corrected softly
 /// (at most `max_push` speed); in the others the velocities are made rigid. A point still apart
 /// may close its gap within the substep but no more (speculative contact).
 pub fn solve(
-    constraints: &mut [ContactConstraint],
-    points: &mut [ContactPoint],
+    colours: &Colours,
+    (constraints, points): (&mut [ContactConstraint], &mut [ContactPoint]),
     bodies: &mut [SolverBody],
     inv_h: f64,
     pass: Pass,
     max_push: f64,
 ) {
-    for c in constraints.iter_mut() {
-        let (b1, b2) = pair_mut(bodies, c.body1, c.body2);
-        let contact_points = &mut points[c.first..c.first + c.count];
-        solve_normals(c, contact_points, (b1, b2), inv_h, pass, max_push);
-        let total: f64 = contact_points.iter().map(|p| p.normal_impulse).sum();
-        c.friction.solve(c.normal, total, b1, b2);
-    }
+    let (bodies, points) = (Shared::new(bodies), Shared::new(points));
+    colours.for_each(constraints, |c| {
+        // SAFETY: within a colour a constraint's points and moving bodies are its own.
+        let contact_points = unsafe { points.slice(c.first..c.first + c.count) };
+        let pair = (c.body1, c.body2);
+        unsafe {
+            with_pair(&bodies, pair, |b1, b2| {
+                solve_normals(c, contact_points, (b1, b2), inv_h, pass, max_push);
+                let total: f64 = contact_points.iter().map(|p| p.normal_impulse).sum();
+                c.friction.solve(c.normal, total, b1, b2);
+            })
+        }
+    });
 }
 
 /// The normal impulses of one manifold's points.

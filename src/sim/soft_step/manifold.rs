@@ -11,7 +11,8 @@ use crate::sim::body::RigidBody;
 use crate::sim::shape::Shape;
 use glam::{DQuat, DVec3};
 use parry3d_f64::math::Pose;
-use parry3d_f64::query::{ContactManifold, DefaultQueryDispatcher, PersistentQueryDispatcher};
+use parry3d_f64::query::ContactManifold;
+use parry3d_f64::query::details::contact_manifold_pfm_pfm;
 
 /// Index standing for the ground plane in a manifold's `body1`.
 pub const GROUND: usize = usize::MAX;
@@ -67,34 +68,73 @@ fn pose(body: &RigidBody) -> Pose {
     Pose::from_parts(body.position, body.orientation)
 }
 
-/// The manifold between bodies `i < j` with points up to `prediction` apart, or None.
+/// What parry keeps of a pair from one step to the next: its last manifold. GJK starts from
+/// its normal, and a pair whose relative pose barely changed keeps its points with updated
+/// separations instead of a new query (parry's `try_update_contacts`).
+pub type PairState = ContactManifold<(), ()>;
+
+/// The manifold between bodies `i < j` with points up to `prediction` apart, or None; `state`
+/// is the pair's from the last step, updated.
 pub fn body_manifold(
     (i, body1): (usize, &RigidBody),
     (j, body2): (usize, &RigidBody),
     shapes: &[Shape],
     prediction: f64,
+    state: &mut PairState,
 ) -> Option<Manifold> {
     let (shape1, shape2) = (&shapes[body1.shape], &shapes[body2.shape]);
     let pos12 = pose(body1).inv_mul(&pose(body2));
-    thread_local! {
-        /// parry's output buffer, reused (cleared: a manifold left from another pair would be
-        /// taken for this pair's previous one).
-        static BUFFER: std::cell::RefCell<Vec<ContactManifold<(), ()>>> = const { std::cell::RefCell::new(Vec::new()) };
+    contact_manifold_pfm_pfm(
+        &pos12,
+        &shape1.hull,
+        0.0,
+        None,
+        &shape2.hull,
+        0.0,
+        None,
+        prediction,
+        state,
+    );
+    from_parry(state, (i, body1), (j, body2), prediction)
+}
+
+/// Each candidate pair's [`PairState`], kept in the pairs' (sorted) order.
+#[derive(Debug, Clone, Default)]
+pub struct PairStates {
+    pairs: Vec<(u32, u32)>,
+    states: Vec<PairState>,
+}
+
+impl PairStates {
+    /// The states of `pairs` (sorted): last step's for the pairs it had, fresh ones for the
+    /// others; the pairs that are gone are dropped.
+    pub fn take_for(&mut self, pairs: &[(u32, u32)]) -> Vec<PairState> {
+        let mut old = self.pairs.iter().zip(self.states.iter_mut()).peekable();
+        pairs
+            .iter()
+            .map(|pair| {
+                while old.next_if(|(p, _)| *p < pair).is_some() {}
+                match old.next_if(|(p, _)| *p == pair) {
+                    Some((_, state)) => std::mem::take(state),
+                    None => PairState::default(),
+                }
+            })
+            .collect()
     }
-    BUFFER.with_borrow_mut(|manifolds| {
-        manifolds.clear();
-        DefaultQueryDispatcher
-            .contact_manifolds(
-                &pos12,
-                &shape1.hull,
-                &shape2.hull,
-                prediction,
-                manifolds,
-                &mut None,
-            )
-            .ok()?;
-        from_parry(manifolds.first()?, (i, body1), (j, body2), prediction)
-    })
+
+    /// Keeps this step's states of `pairs` for the next.
+    pub fn keep(&mut self, pairs: &[(u32, u32)], states: Vec<PairState>) {
+        self.pairs.clear();
+        self.pairs.extend_from_slice(pairs);
+        self.states = states;
+    }
+
+    pub fn heap_bytes(&self) -> usize {
+        let points: usize = self.states.iter().map(|s| s.points.capacity()).sum();
+        self.pairs.capacity() * 8
+            + self.states.capacity() * std::mem::size_of::<PairState>()
+            + points * std::mem::size_of::<parry3d_f64::query::TrackedContact<()>>()
+    }
 }
 
 /// tumble's manifold from parry's (points beyond `prediction` dropped, at most four kept).

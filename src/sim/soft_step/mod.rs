@@ -9,6 +9,7 @@
 //! - then one restitution pass that gives each bouncing point `e^2` of the energy it arrived
 //!   with, measured in the invariant of the integrator (exact apex ratios at any step).
 
+pub mod constraint_graph;
 pub mod contact_solver;
 pub mod joint_block;
 pub mod joint_solver;
@@ -26,13 +27,14 @@ use super::integrate::integrate_pose;
 use super::shape::Shape;
 use super::stats::{Stage, StepStats, Stopwatch};
 use super::step_context::StepContext;
+use constraint_graph::Colours;
 use contact_solver::{
     ContactCache, ContactConstraint, ContactParams, ContactPoint, HeldImpulses, Pass,
 };
 use glam::{DQuat, DVec3};
 use joint_block::JointBlocks;
 use joint_solver::JointRow;
-use manifold::{Manifold, body_manifold, ground_manifold, motion_bound};
+use manifold::{Manifold, PairStates, body_manifold, ground_manifold, motion_bound};
 use rayon::prelude::*;
 use softness::Softness;
 use solver_body::SolverBody;
@@ -53,6 +55,8 @@ const SPECULATIVE_DISTANCE: f64 = 0.02;
 pub struct SoftStep {
     contacts: ContactCache,
     joint_impulses: Vec<f64>,
+    /// parry's last manifold of each candidate pair.
+    pair_states: PairStates,
     /// Bounding radius of each shape (for the speculative margin of spinning bodies).
     radii: Vec<f64>,
     blocks: JointBlocks,
@@ -78,6 +82,8 @@ struct Workspace {
     large_groups: Vec<usize>,
     held: HeldImpulses,
     held_rows: Vec<f64>,
+    /// The manifolds' colours (they are kept in colour order).
+    colours: Colours,
     /// The bodies the solver sees this step: every body in a manifold or a constraint, and
     /// the grabbed one (ascending; fixed ones included, as static solver bodies).
     solved: Vec<usize>,
@@ -124,11 +130,14 @@ pub struct Scene<'a> {
 pub struct Carried {
     contacts: ContactCache,
     joint_impulses: Vec<f64>,
+    pair_states: PairStates,
 }
 
 impl Carried {
     pub fn heap_bytes(&self) -> usize {
-        self.contacts.heap_bytes() + self.joint_impulses.capacity() * 8
+        self.contacts.heap_bytes()
+            + self.joint_impulses.capacity() * 8
+            + self.pair_states.heap_bytes()
     }
 }
 
@@ -175,12 +184,14 @@ impl SoftStep {
         Carried {
             contacts: self.contacts.clone(),
             joint_impulses: self.joint_impulses.clone(),
+            pair_states: self.pair_states.clone(),
         }
     }
 
     pub fn restore(&mut self, carried: &Carried) {
         self.contacts.clone_from(&carried.contacts);
         self.joint_impulses.clone_from(&carried.joint_impulses);
+        self.pair_states.clone_from(&carried.pair_states);
     }
 
     /// One step: collide, then solve in substeps.
@@ -197,6 +208,10 @@ impl SoftStep {
         let pairs = self.broad_phase(ctx, &mut scene, broad, watch, stats);
         self.narrow_phase(scene.bodies, scene.shapes, broad, &pairs, watch, stats);
         watch.enter(Stage::Solve);
+        let view = &*scene.bodies;
+        let w = &mut self.work;
+        w.colours
+            .colour(&mut w.manifolds, view.len(), |i| view[i].is_awake());
         let Some(substeps) = Substeps::new(ctx) else {
             return;
         };
@@ -322,11 +337,20 @@ impl SoftStep {
                 }),
         );
         stats.ground_contacts = manifolds.len();
-        manifolds.par_extend(pairs.par_iter().with_min_len(32).filter_map(|&(i, j)| {
-            let (i, j) = (i as usize, j as usize);
-            let prediction = margins[i] + margins[j];
-            body_manifold((i, &bodies[i]), (j, &bodies[j]), shapes, prediction)
-        }));
+        let mut states = self.pair_states.take_for(pairs);
+        manifolds.par_extend(
+            pairs
+                .par_iter()
+                .zip(states.par_iter_mut())
+                .with_min_len(32)
+                .filter_map(|(&(i, j), state)| {
+                    let (i, j) = (i as usize, j as usize);
+                    let prediction = margins[i] + margins[j];
+                    let (a, b) = ((i, &bodies[i]), (j, &bodies[j]));
+                    body_manifold(a, b, shapes, prediction, state)
+                }),
+        );
+        self.pair_states.keep(pairs, states);
         stats.contacts = manifolds.len() - stats.ground_contacts;
         for m in manifolds.iter() {
             for p in m.points() {
@@ -428,7 +452,7 @@ impl SoftStep {
         watch.enter(Stage::Solve);
         let w = &mut self.work;
         joint_solver::warm_start(&w.rows, bodies, &mut w.bodies);
-        contact_solver::warm_start(&w.contacts, &w.points, &mut w.bodies);
+        contact_solver::warm_start(&w.colours, &mut w.contacts, &mut w.points, &mut w.bodies);
         self.solve_pass(bodies, substeps, Pass::Soft);
         watch.enter(Stage::Integrate);
         let w = &mut self.work;
@@ -456,8 +480,8 @@ impl SoftStep {
             MAX_PUSH_SPEED,
         );
         contact_solver::solve(
-            &mut w.contacts,
-            &mut w.points,
+            &w.colours,
+            (&mut w.contacts, &mut w.points),
             &mut w.bodies,
             inv_h,
             pass,
@@ -476,7 +500,7 @@ impl SoftStep {
         let w = &mut self.work;
         w.hold_back(0.5);
         joint_solver::warm_start(&w.rows, bodies, &mut w.bodies);
-        contact_solver::warm_start(&w.contacts, &w.points, &mut w.bodies);
+        contact_solver::warm_start(&w.colours, &mut w.contacts, &mut w.points, &mut w.bodies);
         self.relax(bodies, substeps, Pass::Final);
         self.work.release();
     }

@@ -1,0 +1,192 @@
+//! Graph colouring of the contact constraints (after Box2D v3's constraint graph): the
+//! manifolds are put in an order where each colour is a run of constraints no two of which
+//! share a moving body, so a colour's constraints can be solved at once on several threads.
+//! Colours run one after another, always in the same order, so the result is the same bits
+//! on any number of threads: the colouring, not the scheduling, fixes the Gauss-Seidel order.
+
+use super::manifold::{GROUND, Manifold};
+use super::solver_body::SolverBody;
+use rayon::prelude::*;
+use std::marker::PhantomData;
+use std::ops::Range;
+
+/// Colours tried before a constraint goes to the overflow run (solved alone, last).
+const COLOURS: usize = 64;
+
+/// Colours smaller than this are solved on the calling thread (same order, same result).
+const PARALLEL_COLOUR: usize = 64;
+
+/// Runs of the (reordered) manifolds, one per colour, the overflow last.
+#[derive(Debug, Clone, Default)]
+pub struct Colours {
+    runs: Vec<Range<usize>>,
+    /// Whether the last run is the overflow (its constraints may share bodies).
+    overflow: bool,
+    /// Scratch: each body's used colours, and each manifold's colour.
+    used: Vec<u64>,
+    colour_of: Vec<u8>,
+    sorted: Vec<Manifold>,
+}
+
+impl Colours {
+    /// Colours `manifolds` greedily in their order (each takes the lowest colour neither of its
+    /// moving bodies has) and reorders them by colour, keeping their order within a colour.
+    /// `bodies` is the number of bodies; `moving(i)` says whether the solver moves body `i`.
+    pub fn colour(
+        &mut self,
+        manifolds: &mut Vec<Manifold>,
+        bodies: usize,
+        moving: impl Fn(usize) -> bool,
+    ) {
+        self.used.clear();
+        self.used.resize(bodies, 0);
+        self.colour_of.clear();
+        let mut counts = [0usize; COLOURS + 1];
+        for m in manifolds.iter() {
+            let movers = [m.body1, m.body2].map(|i| (i != GROUND && moving(i)).then_some(i));
+            let taken = movers.iter().flatten().fold(0u64, |t, &i| t | self.used[i]);
+            let colour = (taken.trailing_ones() as usize).min(COLOURS);
+            if colour < COLOURS {
+                for &i in movers.iter().flatten() {
+                    self.used[i] |= 1 << colour;
+                }
+            }
+            self.colour_of.push(colour as u8);
+            counts[colour] += 1;
+        }
+        self.runs.clear();
+        let mut start = 0;
+        for &count in counts.iter().filter(|&&c| c > 0) {
+            self.runs.push(start..start + count);
+            start += count;
+        }
+        self.overflow = counts[COLOURS] > 0;
+        self.reorder(manifolds, &counts);
+    }
+
+    /// Stable counting sort of the manifolds by colour.
+    fn reorder(&mut self, manifolds: &mut Vec<Manifold>, counts: &[usize; COLOURS + 1]) {
+        let mut next = [0usize; COLOURS + 1];
+        for c in 1..=COLOURS {
+            next[c] = next[c - 1] + counts[c - 1];
+        }
+        self.sorted.clear();
+        self.sorted.extend_from_slice(manifolds);
+        for (m, &colour) in manifolds.iter().zip(&self.colour_of) {
+            self.sorted[next[colour as usize]] = *m;
+            next[colour as usize] += 1;
+        }
+        std::mem::swap(manifolds, &mut self.sorted);
+    }
+
+    /// Runs `f` on every constraint, colour after colour (the constraints are in colour order,
+    /// like the manifolds they were made from); a colour's constraints in parallel when there
+    /// are enough of them. `f` may touch only its constraint's bodies and points.
+    pub fn for_each<C: Send>(&self, constraints: &mut [C], f: impl Fn(&mut C) + Sync) {
+        for (k, run) in self.runs.iter().enumerate() {
+            let Some(slice) = constraints.get_mut(run.clone()) else {
+                continue;
+            };
+            let alone = self.overflow && k + 1 == self.runs.len();
+            if alone || slice.len() < PARALLEL_COLOUR {
+                slice.iter_mut().for_each(&f);
+            } else {
+                slice.par_iter_mut().with_min_len(16).for_each(&f);
+            }
+        }
+    }
+}
+
+/// The solver bodies and contact points, shared by the threads solving one colour. Within a
+/// colour no two constraints share a moving body or a point; bodies that do not move (the
+/// ground, fixed and sleeping bodies) are shared but only read.
+pub struct Shared<'a, T> {
+    ptr: *mut T,
+    len: usize,
+    _borrow: PhantomData<&'a mut [T]>,
+}
+
+// SAFETY: access goes through the methods below, whose callers uphold the colouring's
+// disjointness (see the type's documentation).
+unsafe impl<T: Send> Sync for Shared<'_, T> {}
+
+impl<'a, T: Copy> Shared<'a, T> {
+    pub fn new(slice: &'a mut [T]) -> Self {
+        Self {
+            ptr: slice.as_mut_ptr(),
+            len: slice.len(),
+            _borrow: PhantomData,
+        }
+    }
+
+    /// A copy of element `i`.
+    ///
+    /// # Safety
+    /// No other thread writes element `i` meanwhile.
+    pub unsafe fn read(&self, i: usize) -> T {
+        assert!(i < self.len);
+        // SAFETY: in bounds; no concurrent writer by the caller's contract.
+        unsafe { self.ptr.add(i).read() }
+    }
+
+    /// Writes element `i`.
+    ///
+    /// # Safety
+    /// No other thread reads or writes element `i` meanwhile.
+    pub unsafe fn write(&self, i: usize, value: T) {
+        assert!(i < self.len);
+        // SAFETY: in bounds; exclusive by the caller's contract.
+        unsafe { self.ptr.add(i).write(value) }
+    }
+
+    /// Element `i`, mutably.
+    ///
+    /// # Safety
+    /// No other thread touches element `i` meanwhile.
+    #[allow(clippy::mut_from_ref)]
+    pub unsafe fn get_mut(&self, i: usize) -> &mut T {
+        assert!(i < self.len);
+        // SAFETY: in bounds; exclusive by the caller's contract.
+        unsafe { &mut *self.ptr.add(i) }
+    }
+
+    /// Elements `range`, mutably.
+    ///
+    /// # Safety
+    /// No other thread touches these elements meanwhile.
+    #[allow(clippy::mut_from_ref)]
+    pub unsafe fn slice(&self, range: Range<usize>) -> &mut [T] {
+        assert!(range.start <= range.end && range.end <= self.len);
+        // SAFETY: in bounds; exclusive by the caller's contract.
+        unsafe { std::slice::from_raw_parts_mut(self.ptr.add(range.start), range.len()) }
+    }
+}
+
+/// Runs `solve` on a constraint's two solver bodies: the moving ones in place, the others
+/// (the ground, fixed and sleeping bodies) on copies, so constraints of one colour may share
+/// them.
+///
+/// # Safety
+/// Within the running colour, no other constraint touches `i` or `j` if they move.
+pub unsafe fn with_pair<R>(
+    bodies: &Shared<SolverBody>,
+    (i, j): (usize, usize),
+    solve: impl FnOnce(&mut SolverBody, &mut SolverBody) -> R,
+) -> R {
+    // SAFETY: the caller's contract: moving bodies are this constraint's alone, and the others
+    // are never written while a colour runs.
+    unsafe {
+        let (mut copy1, mut copy2) = (bodies.read(i), bodies.read(j));
+        let b1 = if copy1.inverse_mass > 0.0 {
+            bodies.get_mut(i)
+        } else {
+            &mut copy1
+        };
+        let b2 = if copy2.inverse_mass > 0.0 {
+            bodies.get_mut(j)
+        } else {
+            &mut copy2
+        };
+        solve(b1, b2)
+    }
+}
