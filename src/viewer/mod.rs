@@ -30,9 +30,13 @@
 
 pub mod app;
 pub mod camera;
+pub mod compare;
 mod frame_stats;
 pub mod gpu;
+pub mod grab;
 mod input;
+mod labels;
+mod layer;
 mod overlay;
 pub mod palette;
 pub mod panel;
@@ -42,13 +46,21 @@ mod present;
 mod readback;
 pub mod record;
 pub mod renderer;
+pub mod scene_source;
 pub mod session;
+pub mod shadow;
 mod targets;
+pub mod timeline;
+mod view_pointer;
+mod watch;
 mod window;
 mod window_recording;
 
 pub use app::{ViewOptions, run as run_viewer};
 pub use camera::OrbitCamera;
+pub use compare::Layout;
 pub use gpu::{Gpu, Image, NoGpu, Offscreen};
 pub use record::{FrameWriter, OutputKind, RecordOptions, RecordReport, record};
 pub use renderer::{DrawOptions, OffscreenRenderer, Renderer};
+pub use scene_source::SceneSource;
+pub use session::Session;

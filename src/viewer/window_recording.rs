@@ -58,18 +58,19 @@ impl Recording {
         Ok((path, frames))
     }
 
-    /// Pushes the frames due at `world.time`: one render serves every frame time the last step
-    /// passed.
+    /// Pushes the frames due at the first world's time: one render serves every frame time the
+    /// last step passed. `worlds`: the world and those compared with it.
     pub fn capture_due(
         &mut self,
         gfx: &mut Gfx,
-        world: &World,
+        worlds: &[&World],
         view: SceneView<'_>,
     ) -> anyhow::Result<()> {
+        let world = worlds[0];
         if world.time + 1e-9 < self.next {
             return Ok(());
         }
-        let image = render_view(gfx, world, view)?;
+        let image = render_view(gfx, worlds, view)?;
         let frame = image.crop(0, 0, self.width, self.height);
         anyhow::ensure!(
             frame.width == self.width && frame.height == self.height,
@@ -85,8 +86,8 @@ impl Recording {
 
 /// Renders the scene alone and reads back the 3D view's pixels (top left = view's top left):
 /// from the scene texture, or from the window-sized capture drawn with a viewport.
-fn render_view(gfx: &mut Gfx, world: &World, view: SceneView<'_>) -> anyhow::Result<Image> {
-    let scene = prepare_scene(gfx, world, view);
+fn render_view(gfx: &mut Gfx, worlds: &[&World], view: SceneView<'_>) -> anyhow::Result<Image> {
+    let scene = prepare_scene(gfx, worlds, view);
     let mut encoder = gfx.gpu.device.create_command_encoder(&Default::default());
     if scene.is_some() {
         let target = gfx.scene.as_ref().expect("sized by prepare_scene");
