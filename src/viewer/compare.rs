@@ -77,13 +77,12 @@ pub fn lane_color(lane: usize) -> egui::Color32 {
     ][lane % 3]
 }
 
-/// A compared world's own statistics in one line: time, step, energy, contacts and the cost of
+/// A compared world's own statistics in one short line: time, energy, contacts and the cost of
 /// its last step.
 pub fn lane_statistics(world: &World, last: &StepStats) -> String {
     format!(
-        "t {:.2} s · step {} · energy {:.4e} · {} contacts · {:.2} ms/step",
+        "t {:.2} s · E {:.4e} · {} contacts · {:.2} ms/step",
         world.time,
-        world.step_count,
         world.total_energy(),
         last.contacts + last.ground_contacts,
         1e3 * last.timings.total()

@@ -33,8 +33,8 @@ impl Label {
     }
 
     /// The labels of compared worlds (each with its last step's statistics) in the top left
-    /// corners of the panes of a `rect` (x, y, width, height) view, one under the other in a
-    /// ghost overlay.
+    /// corners of the panes of a `rect` (x, y, width, height) view; the labels of a ghost
+    /// overlay share their pane's corner (and are shown one under the other).
     pub fn for_panes(
         rect: [f32; 4],
         worlds: &[(&World, &StepStats)],
@@ -43,10 +43,10 @@ impl Label {
         let mut labels = Vec::new();
         for pane in compare::panes(rect, worlds.len(), layout) {
             let ghost = pane.lanes.len() > 1;
-            for (row, &k) in pane.lanes.iter().enumerate() {
+            for &k in &pane.lanes {
                 let (world, last) = worlds[k];
                 let mut label = Label::of_lane(k, world, last, ghost);
-                label.pos = [pane.rect[0] + 10.0, pane.rect[1] + 8.0 + 40.0 * row as f32];
+                label.pos = [pane.rect[0] + 10.0, pane.rect[1] + 8.0];
                 labels.push(label);
             }
         }
@@ -90,6 +90,9 @@ impl LabelPainter {
         size: (u32, u32),
         labels: &[Label],
     ) {
+        // Text a little larger in larger frames.
+        self.ctx
+            .set_zoom_factor((size.1 as f32 / 400.0).clamp(0.8, 2.0));
         let output = self.run(size, labels);
         let jobs = self.ctx.tessellate(output.shapes, output.pixels_per_point);
         for (id, deltas) in &output.textures_delta.set {
@@ -114,32 +117,41 @@ impl LabelPainter {
         }
     }
 
-    /// egui's output for the labels on a `size` screen.
+    /// egui's output for the labels on a `size` screen (pixels); labels at the same place
+    /// share a backing, one under the other.
     fn run(&mut self, size: (u32, u32), labels: &[Label]) -> egui::FullOutput {
+        let zoom = self.ctx.zoom_factor();
         let input = || egui::RawInput {
             screen_rect: Some(egui::Rect::from_min_size(
                 egui::Pos2::ZERO,
-                egui::vec2(size.0 as f32, size.1 as f32),
+                egui::vec2(size.0 as f32, size.1 as f32) / zoom,
             )),
             ..Default::default()
         };
         let show = |ui: &mut egui::Ui| {
-            for (k, label) in labels.iter().enumerate() {
+            for (k, group) in labels.chunk_by(|a, b| a.pos == b.pos).enumerate() {
+                let [x, y] = group[0].pos;
                 egui::Area::new(egui::Id::unique(("label", k)))
-                    .fixed_pos(egui::pos2(label.pos[0], label.pos[1]))
+                    .fixed_pos(egui::pos2(x, y) / zoom)
                     .show(ui.ctx(), |ui| {
+                        ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Extend);
                         egui::Frame::new()
                             .fill(Color32::from_black_alpha(150))
                             .inner_margin(4)
                             .corner_radius(3)
-                            .show(ui, |ui| label.show(ui));
+                            .show(ui, |ui| group.iter().for_each(|label| label.show(ui)));
                     });
             }
         };
-        if !self.warm {
-            self.warm = true;
-            let _ = self.ctx.run_ui(input(), &show);
+        if self.warm {
+            return self.ctx.run_ui(input(), &show);
         }
-        self.ctx.run_ui(input(), &show)
+        self.warm = true;
+        // The layout pass's textures (the font atlas) are uploaded with the frame's.
+        let mut textures = self.ctx.run_ui(input(), &show).textures_delta;
+        let mut output = self.ctx.run_ui(input(), &show);
+        textures.append(std::mem::take(&mut output.textures_delta));
+        output.textures_delta = textures;
+        output
     }
 }

@@ -785,6 +785,15 @@ fn selection_ui(ui: &mut egui::Ui, session: &Session, selected: Option<usize>) {
 pub fn overlay(ctx: &egui::Context, view: egui::Rect, session: &Session, state: &PanelState) {
     let rect = [view.min.x, view.min.y, view.width(), view.height()];
     let panes = compare::panes(rect, session.lanes.len(), state.draw.layout);
+    let painter = ctx.layer_painter(egui::LayerId::background());
+    for pane in &panes[1..] {
+        let x = pane.rect[0];
+        painter.vline(
+            x,
+            view.y_range(),
+            egui::Stroke::new(2.0, Color32::from_gray(90)),
+        );
+    }
     for (k, pane) in panes.iter().enumerate() {
         let corner = egui::pos2(pane.rect[0], pane.rect[1]) + egui::vec2(10.0, 8.0);
         egui::Area::new(egui::Id::unique(("view_overlay", k)))
@@ -846,10 +855,12 @@ fn status_lines(ui: &mut egui::Ui, session: &Session) {
 fn selection_lines(ui: &mut egui::Ui, session: &Session, state: &PanelState) {
     let world = session.world();
     if let Some((_, force)) = super::grab::force(world) {
-        ui.label(
-            RichText::new(format!("grab: force {:.4e}", force.length()))
-                .color(Color32::from_rgb(140, 240, 255)),
-        );
+        let text = if session.playing {
+            format!("grab: force {:.4e}", force.length())
+        } else {
+            "grab: moving the body (paused)".to_string()
+        };
+        ui.label(RichText::new(text).color(Color32::from_rgb(140, 240, 255)));
     }
     if let Some(index) = state.draw.selected.filter(|&i| i < world.bodies.len()) {
         let b = &world.bodies[index];
