@@ -373,7 +373,7 @@ impl App {
             draw: &self.panel.draw,
             rect: self.view_rect,
         };
-        if let Err(e) = recording.capture_due(gfx, &self.session.worlds(), view) {
+        if let Err(e) = recording.capture_due(gfx, &self.session.lanes, view) {
             self.panel.message = Some(format!("recording failed: {e:#}"));
             self.recording = None;
         }
@@ -470,10 +470,9 @@ impl App {
         };
         let mut failure = None;
         session.advance(real_dt, |lanes| {
-            let worlds: Vec<&World> = lanes.iter().map(|l| &l.world).collect();
             if failure.is_none()
                 && let Some(recording) = recording.as_mut()
-                && let Err(e) = recording.capture_due(gfx, &worlds, view)
+                && let Err(e) = recording.capture_due(gfx, lanes, view)
             {
                 failure = Some(e);
             }

@@ -130,7 +130,7 @@ fn prepare_scene_target(gfx: &mut Gfx, view_rect: ViewRect) -> Option<wgpu::Orig
         .as_ref()
         .is_none_or(|s| s.width != w || s.height != h)
     {
-        gfx.scene = Some(Offscreen::new(device, w, h, gfx.renderer.color_format));
+        gfx.scene = Some(Offscreen::new(device, w, h, gfx.config.format));
     }
     gfx.renderer.resize(device, w, h);
     Some(wgpu::Origin3d { x, y, z: 0 })
@@ -228,7 +228,7 @@ fn draw_targets(
     if let Some((_, scene)) = scene
         && !targets.is_empty()
     {
-        gfx.renderer.draw(encoder, &scene.view, None);
+        gfx.renderer.draw(encoder, &scene.srgb_view, None);
     }
     let panel_fill = gfx.egui_ctx.global_style().visuals.panel_fill;
     for target in targets {
