@@ -85,19 +85,71 @@ pub struct ScenePipelines {
     pub shadow_layout: wgpu::BindGroupLayout,
     /// Bodies into a shadow map, from the light.
     pub shadow: wgpu::RenderPipeline,
+    /// The pipelines of lit surfaces that sample the shadow map, and the same without shadows
+    /// (the lookup compiled out: software rasterisers pay for it even when skipped).
+    pub shadowed: SurfacePipelines,
+    pub unshadowed: SurfacePipelines,
+    /// Depth-tested lines: constraint segments, selection outline.
+    pub lines: wgpu::RenderPipeline,
+    /// Lines over everything: contact markers lie inside the overlapping bodies.
+    pub overlay: wgpu::RenderPipeline,
+}
+
+/// The pipelines of lit surfaces, which receive shadows.
+pub struct SurfacePipelines {
     /// Instanced, depth-tested, back-face culled triangles.
     pub bodies: wgpu::RenderPipeline,
     /// A compared world's bodies over the first one's: blended, writing no depth.
     pub ghosts: wgpu::RenderPipeline,
-    /// Depth-tested lines: constraint segments, selection outline.
-    pub lines: wgpu::RenderPipeline,
     /// The ground plane, painted first and writing no depth: everything is drawn over it,
-    /// including the parts of bodies that sink below y = 0. Receives shadows.
+    /// including the parts of bodies that sink below y = 0.
     pub ground: wgpu::RenderPipeline,
-    /// The ground grid's lines, depth-tested, receiving shadows like the plane.
+    /// The ground grid's lines, depth-tested, shaded like the plane.
     pub grid: wgpu::RenderPipeline,
-    /// Lines over everything: contact markers lie inside the overlapping bodies.
-    pub overlay: wgpu::RenderPipeline,
+}
+
+impl SurfacePipelines {
+    /// With the shader's `SHADOWS` constant set to `shadows`.
+    fn new(base: &PipelineBase<'_>, shadows: bool) -> SurfacePipelines {
+        use wgpu::CompareFunction::{Always, Less, LessEqual};
+        use wgpu::PrimitiveTopology::{LineList, TriangleList};
+        let constants: &[(&str, f64)] = if shadows {
+            &[("SHADOWS", 1.0)]
+        } else {
+            &[("SHADOWS", 0.0)]
+        };
+        let body = |label, fragment_entry, depth_write, blend| PipelineSpec {
+            label,
+            vertex_entry: "vs_body",
+            fragment_entry,
+            buffers: &BODY_BUFFERS,
+            topology: TriangleList,
+            cull_mode: Some(wgpu::Face::Back),
+            depth_write,
+            depth_compare: Less,
+            blend,
+            constants,
+        };
+        let ground = |label, topology, depth_write, depth_compare| PipelineSpec {
+            label,
+            vertex_entry: "vs_ground",
+            fragment_entry: "fs_ground",
+            buffers: &LINE_BUFFERS,
+            topology,
+            cull_mode: None,
+            depth_write,
+            depth_compare,
+            blend: None,
+            constants,
+        };
+        let ghost_blend = Some(wgpu::BlendState::ALPHA_BLENDING);
+        SurfacePipelines {
+            bodies: base.build(body("bodies", "fs_body", true, None)),
+            ghosts: base.build(body("ghost bodies", "fs_ghost", false, ghost_blend)),
+            ground: base.build(ground("ground", TriangleList, false, Always)),
+            grid: base.build(ground("grid", LineList, true, LessEqual)),
+        }
+    }
 }
 
 /// What differs between the scene's pipelines.
@@ -111,6 +163,8 @@ struct PipelineSpec<'a> {
     depth_write: bool,
     depth_compare: wgpu::CompareFunction,
     blend: Option<wgpu::BlendState>,
+    /// Values of the shader's pipeline-overridable constants.
+    constants: &'a [(&'a str, f64)],
 }
 
 /// What all the scene's pipelines share.
@@ -131,7 +185,10 @@ impl PipelineBase<'_> {
                 vertex: wgpu::VertexState {
                     module: self.module,
                     entry_point: Some(spec.vertex_entry),
-                    compilation_options: Default::default(),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants: spec.constants,
+                        ..Default::default()
+                    },
                     buffers: spec.buffers,
                 },
                 primitive: wgpu::PrimitiveState {
@@ -154,7 +211,10 @@ impl PipelineBase<'_> {
                 fragment: Some(wgpu::FragmentState {
                     module: self.module,
                     entry_point: Some(spec.fragment_entry),
-                    compilation_options: Default::default(),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants: spec.constants,
+                        ..Default::default()
+                    },
                     targets: &[Some(wgpu::ColorTargetState {
                         format: self.color_format,
                         blend: spec.blend,
@@ -192,47 +252,24 @@ impl ScenePipelines {
             color_format,
             sample_count,
         };
-        use wgpu::CompareFunction::{Always, Less, LessEqual};
-        use wgpu::PrimitiveTopology::{LineList, TriangleList};
-        let line_spec =
-            |label, entries: (&'static str, &'static str), topology, depth_write, depth_compare| {
-                PipelineSpec {
-                    label,
-                    vertex_entry: entries.0,
-                    fragment_entry: entries.1,
-                    buffers: &LINE_BUFFERS,
-                    topology,
-                    cull_mode: None,
-                    depth_write,
-                    depth_compare,
-                    blend: None,
-                }
-            };
-        let body_spec = |label, fragment_entry, depth_write, blend| PipelineSpec {
+        let line = |label, depth_write, depth_compare| PipelineSpec {
             label,
-            vertex_entry: "vs_body",
-            fragment_entry,
-            buffers: &BODY_BUFFERS,
-            topology: TriangleList,
-            cull_mode: Some(wgpu::Face::Back),
+            vertex_entry: "vs_line",
+            fragment_entry: "fs_line",
+            buffers: &LINE_BUFFERS,
+            topology: wgpu::PrimitiveTopology::LineList,
+            cull_mode: None,
             depth_write,
-            depth_compare: Less,
-            blend,
+            depth_compare,
+            blend: None,
+            constants: &[],
         };
-        let (line, ground) = (("vs_line", "fs_line"), ("vs_ground", "fs_ground"));
         ScenePipelines {
             shadow: shadow::pipeline(device, &module, &layout),
-            bodies: base.build(body_spec("bodies", "fs_body", true, None)),
-            ghosts: base.build(body_spec(
-                "ghost bodies",
-                "fs_ghost",
-                false,
-                Some(wgpu::BlendState::ALPHA_BLENDING),
-            )),
-            lines: base.build(line_spec("lines", line, LineList, true, LessEqual)),
-            overlay: base.build(line_spec("overlay lines", line, LineList, false, Always)),
-            ground: base.build(line_spec("ground", ground, TriangleList, false, Always)),
-            grid: base.build(line_spec("grid", ground, LineList, true, LessEqual)),
+            shadowed: SurfacePipelines::new(&base, true),
+            unshadowed: SurfacePipelines::new(&base, false),
+            lines: base.build(line("lines", true, wgpu::CompareFunction::LessEqual)),
+            overlay: base.build(line("overlay lines", false, wgpu::CompareFunction::Always)),
             module,
             globals,
             globals_bind_group,

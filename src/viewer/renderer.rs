@@ -360,22 +360,27 @@ impl Renderer {
     fn draw_pane(&self, pass: &mut wgpu::RenderPass<'_>, lanes: &[usize]) {
         let main = &self.layers[lanes[0]];
         let pipelines = &self.pipelines;
+        let surfaces = if self.shadows {
+            &pipelines.shadowed
+        } else {
+            &pipelines.unshadowed
+        };
         pass.set_bind_group(0, &pipelines.globals_bind_group, &[]);
         pass.set_bind_group(1, &main.shadow.bind_group, &[]);
         if self.draw_grid
             && let Some(ground) = &self.scene.ground_buffer
         {
             pass.set_vertex_buffer(0, ground.slice(..));
-            pass.set_pipeline(&pipelines.ground);
+            pass.set_pipeline(&surfaces.ground);
             pass.draw(self.scene.ground_plane.clone(), 0..1);
-            pass.set_pipeline(&pipelines.grid);
+            pass.set_pipeline(&surfaces.grid);
             pass.draw(self.scene.ground_grid.clone(), 0..1);
         }
-        pass.set_pipeline(&pipelines.bodies);
+        pass.set_pipeline(&surfaces.bodies);
         main.draw_bodies(pass, &self.scene);
         main.draw_lines(pass, pipelines);
         for &ghost in &lanes[1..] {
-            pass.set_pipeline(&pipelines.ghosts);
+            pass.set_pipeline(&surfaces.ghosts);
             self.layers[ghost].draw_bodies(pass, &self.scene);
         }
     }
