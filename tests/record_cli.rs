@@ -7,6 +7,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+use tumble::viewer::palette;
 
 fn tumble() -> Command {
     let mut command = Command::new(env!("CARGO_BIN_EXE_tumble"));
@@ -98,6 +99,109 @@ fn record_gif() {
         "the bodies fall between the first and last frame"
     );
     no_partial_files(&dir);
+}
+
+/// Decoded RGBA frames of a GIF, with its size.
+fn gif_frames(path: &Path) -> (u16, u16, Vec<Vec<u8>>) {
+    let mut options = gif::DecodeOptions::new();
+    options.set_color_output(gif::ColorOutput::RGBA);
+    let mut decoder = options
+        .read_info(std::fs::File::open(path).unwrap())
+        .unwrap();
+    let (w, h) = (decoder.width(), decoder.height());
+    let mut frames = Vec::new();
+    while let Some(frame) = decoder.read_next_frame().unwrap() {
+        frames.push(frame.buffer.to_vec());
+    }
+    (w, h, frames)
+}
+
+/// `record --compare`: two panes, each with its label (bright text in its top left corner, where
+/// a recording of one world has only background), showing different motion.
+#[test]
+fn record_compare_side_by_side() {
+    let dir = scratch("compare");
+    let out = dir.join("compare.gif");
+    let Some(output) = run_rendering(
+        tumble()
+            .args([
+                "record",
+                "tower",
+                "--compare",
+                "--solver coursework --dt 0.01",
+            ])
+            .args(["--seconds", "1", "--fps", "5", "--size", "640x240", "-o"])
+            .arg(&out),
+    ) else {
+        return;
+    };
+    assert!(String::from_utf8_lossy(&output.stdout).contains("wrote 5 frames"));
+    let (w, h, frames) = gif_frames(&out);
+    assert_eq!((w, h, frames.len()), (640, 240, 5));
+    let pixel = |frame: &[u8], x: usize, y: usize| {
+        let i = 4 * (y * w as usize + x);
+        [frame[i], frame[i + 1], frame[i + 2]]
+    };
+    let last = &frames[4];
+    // The statistics' grey text (the bodies are coloured).
+    let grey_text = |p: [u8; 3]| {
+        let (max, min) = (p.iter().max().unwrap(), p.iter().min().unwrap());
+        *min > 130 && max - min < 30
+    };
+    for x0 in [0, 320] {
+        let text = (8..50)
+            .flat_map(|y| (x0 + 10..x0 + 300).map(move |x| (x, y)))
+            .filter(|&(x, y)| grey_text(pixel(last, x, y)))
+            .count();
+        assert!(
+            text > 30,
+            "no label in the pane at x = {x0}: {text} bright pixels"
+        );
+    }
+    let half = |frame: &[u8], x0: usize| -> Vec<[u8; 3]> {
+        (60..h as usize)
+            .flat_map(|y| (x0..x0 + 320).map(move |x| (x, y)))
+            .map(|(x, y)| pixel(frame, x, y))
+            .collect()
+    };
+    assert_ne!(
+        half(last, 0),
+        half(last, 320),
+        "dt 0.02 and 0.01 move differently"
+    );
+}
+
+/// `--camera orbit` starts where the framed camera looks and turns from there.
+#[test]
+fn record_orbit() {
+    let dir = scratch("orbit");
+    let mut runs = Vec::new();
+    for camera in [None, Some("orbit")] {
+        let out = dir.join(format!("{}.gif", camera.unwrap_or("still")));
+        let mut command = tumble();
+        command.args([
+            "record",
+            "cube",
+            "--seconds",
+            "0.4",
+            "--fps",
+            "10",
+            "--size",
+            "96x64",
+        ]);
+        if let Some(camera) = camera {
+            command.args(["--camera", camera]);
+        }
+        let Some(_) = run_rendering(command.arg("-o").arg(&out)) else {
+            return;
+        };
+        runs.push(gif_frames(&out).2);
+    }
+    assert_eq!(
+        runs[0][0], runs[1][0],
+        "the orbit starts at the framed camera"
+    );
+    assert_ne!(runs[0][2], runs[1][2], "and then turns");
 }
 
 fn read_png(path: &Path) -> (u32, u32, Vec<u8>) {
@@ -316,6 +420,108 @@ fn check_screenshot(path: &Path) {
     let right = distinct(w - w / 5, w);
     assert!(left > 50, "3D view nearly blank: {left} colours");
     assert!(right > 10, "panel nearly blank: {right} colours");
+}
+
+/// The real window comparing two settings: `tumble view tower --compare accurate` for 200
+/// frames (CI runs the same command), whose screenshot shows bodies in both panes.
+#[test]
+fn view_compare_under_xvfb() {
+    if !on_path("xvfb-run") {
+        eprintln!("skipping: xvfb-run is not installed");
+        return;
+    }
+    let dir = scratch("view-compare");
+    let shot = dir.join("compare.png");
+    let mut command = Command::new("xvfb-run");
+    command
+        .args([
+            "-a",
+            "-s",
+            "-screen 0 1280x800x24 -nolisten tcp",
+            env!("CARGO_BIN_EXE_tumble"),
+            "view",
+            "tower",
+            "--compare",
+            "accurate",
+            "--frames",
+            "200",
+            "--screenshot",
+        ])
+        .arg(&shot)
+        .env("XDG_RUNTIME_DIR", scratch("view-compare-xdg"))
+        .env_remove("WAYLAND_DISPLAY");
+    let Some(output) = run_rendering(&mut command) else {
+        return;
+    };
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("world A (coursework)"), "{stderr}");
+    assert!(stderr.contains("world B (accurate)"), "{stderr}");
+    check_compare_screenshot(&shot);
+}
+
+/// The pixels of tower's bodies in a lit picture: bright, saturated, and of the chromaticity
+/// of one of the bodies' palette colours (not of the ground grid's red and blue axes).
+fn body_pixel(p: [u8; 3]) -> bool {
+    let c = p.map(|v| v as f64);
+    let (max, min) = (c[0].max(c[1]).max(c[2]), c[0].min(c[1]).min(c[2]));
+    if max < 90.0 || max - min < 0.3 * max {
+        return false;
+    }
+    let chroma = |c: [f64; 3]| {
+        let s = c[0] + c[1] + c[2];
+        [c[0] / s, c[1] / s, c[2] / s]
+    };
+    let distance = |a: [f64; 3], b: [f64; 3]| (0..3).map(|k| (a[k] - b[k]).abs()).sum::<f64>();
+    let here = chroma(c);
+    let to = |srgb: [f32; 3]| distance(here, chroma(srgb.map(|v| v as f64)));
+    let axes = [palette::GRID_X_AXIS_SRGB, palette::GRID_Z_AXIS_SRGB];
+    let nearest_axis = axes.iter().map(|&a| to(a)).fold(f64::INFINITY, f64::min);
+    (0..9).any(|i| {
+        let d = to(palette::body_srgb(i, false));
+        d < 0.06 && d < nearest_axis
+    })
+}
+
+/// Both panes of a compare screenshot (the 3D view, left of the panel, split in two) show
+/// bodies. The view ends where the top row stops being the 3D view's background.
+fn check_compare_screenshot(path: &Path) {
+    let (w, h, rgba) = read_png(path);
+    let pixel = |x: u32, y: u32| {
+        let i = 4 * (y * w + x) as usize;
+        [rgba[i], rgba[i + 1], rgba[i + 2]]
+    };
+    let background = palette::srgb_bytes(palette::BACKGROUND_SRGB);
+    let view_width = (0..w)
+        .rev()
+        .find(|&x| pixel(x, 2) == background)
+        .expect("the 3D view's background in the top row")
+        + 1;
+    assert!(view_width > w / 2, "view {view_width} of {w} pixels wide");
+    // Below the panes' labels; inside a body (its 3x3 neighbourhood too), which thin lines
+    // such as the grid's axes never are.
+    let inside = |x: u32, y: u32| (0..9).all(|k| body_pixel(pixel(x + k % 3 - 1, y + k / 3 - 1)));
+    let count = |x0: u32, x1: u32| {
+        (80..h - 1)
+            .flat_map(|y| (x0.max(1)..x1 - 1).map(move |x| (x, y)))
+            .filter(|&(x, y)| inside(x, y))
+            .count()
+    };
+    let (left, right) = (count(0, view_width / 2), count(view_width / 2, view_width));
+    eprintln!("body pixels: {left} in the left pane, {right} in the right one");
+    assert!(
+        left > 300 && right > 300,
+        "bodies in both panes: {left} and {right} pixels"
+    );
+}
+
+/// `.ci/run` checks the screenshot of its own `tumble view --compare` run through this test:
+/// TUMBLE_CHECK_COMPARE_SCREENSHOT=path cargo test --release --test record_cli check_compare_screenshot_file
+#[test]
+fn check_compare_screenshot_file() {
+    match std::env::var_os("TUMBLE_CHECK_COMPARE_SCREENSHOT") {
+        Some(path) => check_compare_screenshot(Path::new(&path)),
+        None => eprintln!("TUMBLE_CHECK_COMPARE_SCREENSHOT not set: nothing to check"),
+    }
 }
 
 /// `.ci/run` checks the screenshot of its own `tumble view` run through this test:

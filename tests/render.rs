@@ -333,3 +333,179 @@ fn instance_data_is_the_pose_in_f32() {
         assert_eq!(inst.color[3], if index == 2 { 1.0 } else { 0.0 });
     }
 }
+
+/// Where the ray from the camera through pixel centre `(x, y)` meets the ground (y = 0), when
+/// no body is in the way.
+fn ground_point(
+    world: &World,
+    camera: &OrbitCamera,
+    x: f64,
+    y: f64,
+    size: (u32, u32),
+) -> Option<DVec3> {
+    let (origin, dir) = camera.ray(x, y, size.0 as f64, size.1 as f64);
+    if dir.y >= -1e-9 || pick(world, origin, dir).is_some() {
+        return None;
+    }
+    Some(origin + dir * (-origin.y / dir.y))
+}
+
+/// Whether the key light is blocked at ground point `p`: a CPU ray cast towards the light
+/// against the core's triangles.
+fn in_shadow(world: &World, p: DVec3) -> bool {
+    let light = tumble::viewer::shadow::light_direction();
+    pick(world, p + DVec3::Y * 1e-9, light).is_some()
+}
+
+fn brightness(p: [u8; 4]) -> i32 {
+    p[0] as i32 + p[1] as i32 + p[2] as i32
+}
+
+/// Shadows: every ground pixel that a CPU ray cast towards the key light finds blocked is darker
+/// than the same pixel rendered without shadows (and than open ground), and every one it finds
+/// lit is unchanged. Pixels near a shadow's edge (filtered) or a body's outline are not judged.
+#[test]
+fn ground_in_the_shadow_of_a_body_is_darker_than_open_ground() {
+    let mut world = load("mixed");
+    for _ in 0..60 {
+        world.step();
+    }
+    let size = (320, 240);
+    let Some(mut r) = renderer_or_skip(&world, size.0, size.1) else {
+        return;
+    };
+    let mut camera = OrbitCamera {
+        pitch: 55f64.to_radians(),
+        ..OrbitCamera::default()
+    };
+    camera.frame(&world, size.0 as f64 / size.1 as f64);
+    let options = DrawOptions::default();
+    let shadowed = r.render(&world, &camera, &options).unwrap();
+    let plain = r
+        .render(
+            &world,
+            &camera,
+            &DrawOptions {
+                shadows: false,
+                ..options
+            },
+        )
+        .unwrap();
+    let ground = palette::srgb_bytes(palette::GROUND_SRGB);
+    let open_ground = brightness([ground[0], ground[1], ground[2], 255]);
+    // A shadow's filtered edge spans a few texels of a map covering the ground (a few times the
+    // scene): judge points whose neighbours this far away agree.
+    let boxes = world.body_aabbs();
+    let lo = boxes.iter().fold(DVec3::INFINITY, |m, b| m.min(b.min));
+    let hi = boxes.iter().fold(DVec3::NEG_INFINITY, |m, b| m.max(b.max));
+    let margin = 0.02 * (hi - lo).length();
+    let around: Vec<(f64, f64)> = (0..9)
+        .map(|k| (2.0 * (k % 3) as f64 - 2.0, 2.0 * (k / 3) as f64 - 2.0))
+        .collect();
+    let compass: Vec<DVec3> = (0..8)
+        .map(|k| {
+            let a = k as f64 * std::f64::consts::FRAC_PI_4;
+            DVec3::new(a.cos(), 0.0, a.sin())
+        })
+        .collect();
+    let (mut dark, mut lit) = (0, 0);
+    for j in (2..size.1 - 2).step_by(2) {
+        for i in (2..size.0 - 2).step_by(2) {
+            let (x, y) = (i as f64 + 0.5, j as f64 + 0.5);
+            // The pixel and its neighbours 2 pixels away all see the ground.
+            let points: Option<Vec<DVec3>> = around
+                .iter()
+                .map(|(dx, dy)| ground_point(&world, &camera, x + dx, y + dy, size))
+                .collect();
+            let Some(points) = points else { continue };
+            let p = points[4];
+            let blocked = in_shadow(&world, p);
+            let steady = compass
+                .iter()
+                .all(|&d| in_shadow(&world, p + margin * d) == blocked);
+            if !steady {
+                continue;
+            }
+            let (with, without) = (shadowed.pixel(i, j), plain.pixel(i, j));
+            if blocked {
+                assert!(
+                    brightness(with) * 10 < brightness(without) * 8,
+                    "({i}, {j}) at {p} is in shadow but {with:?} is not darker than {without:?}"
+                );
+                if close(without, ground, 1) {
+                    assert!(brightness(with) < open_ground - 10);
+                }
+                dark += 1;
+            } else {
+                assert!(
+                    close(with, [without[0], without[1], without[2]], 2),
+                    "({i}, {j}) at {p} is lit but {with:?} differs from {without:?}"
+                );
+                lit += 1;
+            }
+        }
+    }
+    eprintln!("shadows: {dark} shadowed and {lit} lit ground pixels agree with the ray casts");
+    assert!(
+        dark >= 20 && lit >= 200,
+        "{dark} shadowed, {lit} lit pixels judged"
+    );
+}
+
+/// Side by side: each pane shows its own world, as the core's geometry says, through the same
+/// camera at the pane's aspect.
+#[test]
+fn compared_worlds_are_drawn_side_by_side() {
+    let mut a = load("mixed");
+    let mut b =
+        tumble::scene::load("mixed", &ConstraintsChoice::Auto, Settings::accurate()).unwrap();
+    for _ in 0..80 {
+        a.step();
+        b.step();
+    }
+    let (width, height) = (480, 200);
+    let Some(mut r) = renderer_or_skip(&a, width, height) else {
+        return;
+    };
+    let pane = (width / 2, height);
+    let mut camera = OrbitCamera::default();
+    camera.frame(&a, pane.0 as f64 / pane.1 as f64);
+    let options = DrawOptions {
+        grid: false,
+        constraints: false,
+        flat: true,
+        ..DrawOptions::default()
+    };
+    let image = r.render_worlds(&[&a, &b], &camera, &options, &[]).unwrap();
+    let mut differ = 0;
+    for (k, world) in [&a, &b].into_iter().enumerate() {
+        let mut checked = 0;
+        for index in 0..world.bodies.len() {
+            let Some((x, y)) =
+                camera.project(world.bodies[index].position, pane.0 as f64, pane.1 as f64)
+            else {
+                continue;
+            };
+            let (i, j) = (x as u32, y as u32);
+            if i < 2 || j < 2 || i >= pane.0 - 2 || j >= pane.1 - 2 {
+                continue;
+            }
+            let Some(Some(hit)) = expected_at(world, &camera, i, j, pane.0, pane.1) else {
+                continue;
+            };
+            let pixel = image.pixel(i + k as u32 * pane.0, j);
+            assert!(
+                close(pixel, body_bytes(world, hit), 2),
+                "pane {k}: ({i}, {j}) should show body {hit}, got {pixel:?}"
+            );
+            checked += 1;
+            differ +=
+                ((a.bodies[index].position - b.bodies[index].position).length() > 0.1) as usize;
+        }
+        assert!(
+            checked >= world.bodies.len() / 2,
+            "pane {k}: {checked} bodies checked"
+        );
+    }
+    assert!(differ > 0, "the two worlds should differ somewhere");
+}

@@ -2,8 +2,45 @@
 //! feature the commands explain how to get it.
 
 use super::{SceneArgs, SettingsArgs};
-use clap::Args;
+use clap::{Args, Parser};
 use std::path::PathBuf;
+use tumble::Settings;
+
+/// The settings of a compared world: `--compare` takes a preset (`accurate`, `coursework`), the
+/// settings flags of `tumble run`, or a preset followed by flags.
+#[derive(Debug, Parser)]
+#[command(no_binary_name = true)]
+struct CompareFlags {
+    #[command(flatten)]
+    settings: SettingsArgs,
+}
+
+/// Parses a `--compare` spec (also typed into the viewer's panel) into settings.
+pub fn parse_compare(spec: &str) -> Result<Settings, String> {
+    let mut words: Vec<&str> = spec.split_whitespace().collect();
+    let preset = match words.first() {
+        Some(&"accurate") => Some(true),
+        Some(&"coursework") => Some(false),
+        _ => None,
+    };
+    if preset.is_some() {
+        words.remove(0);
+    } else if words.is_empty() {
+        return Err("expected a preset (accurate, coursework) or settings flags".into());
+    }
+    let mut flags = CompareFlags::try_parse_from(&words).map_err(|e| {
+        let text = e.to_string();
+        text.lines()
+            .next()
+            .unwrap_or(&text)
+            .trim_start_matches("error: ")
+            .to_string()
+    })?;
+    if let Some(accurate) = preset {
+        flags.settings.accurate |= accurate;
+    }
+    flags.settings.settings().map_err(|e| e.to_string())
+}
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
     let (w, h) = s
@@ -39,9 +76,21 @@ pub struct ViewArgs {
     /// Render as fast as possible instead of waiting for the display's refresh.
     #[arg(long)]
     pub no_vsync: bool,
+    /// Start with shadows off (a panel toggle).
+    #[arg(long)]
+    pub no_shadows: bool,
     /// Camera: YAW,PITCH[,DISTANCE[,X,Y,Z]] in degrees and scene units (default: framed scene).
     #[arg(long, value_name = "SPEC", allow_hyphen_values = true)]
     pub camera: Option<String>,
+    /// Compare with other settings: a second world of the scene stepped in lockstep and drawn
+    /// beside the first, each labelled. A preset (`accurate`, `coursework`) and/or settings
+    /// flags, e.g. `--compare accurate` or `--compare "--solver coursework --dt 0.01"`.
+    #[arg(long, value_name = "PRESET_OR_FLAGS", allow_hyphen_values = true)]
+    pub compare: Option<String>,
+    /// With --compare: draw the second world as a translucent ghost over the first instead of
+    /// beside it.
+    #[arg(long, requires = "compare")]
+    pub ghost: bool,
     #[command(flatten)]
     pub settings: SettingsArgs,
 }
@@ -63,9 +112,20 @@ pub struct RecordArgs {
     #[arg(long, value_name = "WxH", value_parser = parse_size)]
     pub size: Option<(u32, u32)>,
     /// Camera: YAW,PITCH[,DISTANCE[,X,Y,Z]] in degrees and scene units (default: the scene
-    /// framed from yaw 35, pitch 25).
+    /// framed from yaw 35, pitch 25), or `orbit`: the framed scene turning once around its
+    /// vertical axis over the recording.
     #[arg(long, value_name = "SPEC", allow_hyphen_values = true)]
     pub camera: Option<String>,
+    /// Compare with other settings: a second world of the scene stepped in lockstep and drawn
+    /// beside the first, each labelled. A preset (`accurate`, `coursework`) and/or settings
+    /// flags, e.g. `--compare accurate` or `--compare "--solver coursework --dt 0.01"`.
+    #[arg(long, value_name = "PRESET_OR_FLAGS", allow_hyphen_values = true)]
+    pub compare: Option<String>,
+    /// With --compare: draw the second world as a translucent ghost over the first instead of
+    /// beside it.
+    #[arg(long, requires = "compare")]
+    pub ghost: bool,
+
     /// Draw contact points and normals.
     #[arg(long)]
     pub contacts: bool,
@@ -75,6 +135,9 @@ pub struct RecordArgs {
     /// No constraint segments.
     #[arg(long)]
     pub no_constraints: bool,
+    /// No shadows.
+    #[arg(long)]
+    pub no_shadows: bool,
     #[command(flatten)]
     pub settings: SettingsArgs,
 }
@@ -92,8 +155,25 @@ pub fn record(_args: &RecordArgs) -> anyhow::Result<()> {
     anyhow::bail!(NO_VIEWER)
 }
 
+/// The layout of compared worlds the flags ask for.
+#[cfg(feature = "viewer")]
+fn layout(ghost: bool) -> tumble::viewer::Layout {
+    if ghost {
+        tumble::viewer::Layout::Ghost
+    } else {
+        tumble::viewer::Layout::SideBySide
+    }
+}
+
+/// The settings of `--compare`, checked before anything opens.
+fn compare_settings(spec: Option<&str>) -> anyhow::Result<Option<Settings>> {
+    spec.map(|spec| parse_compare(spec).map_err(|e| anyhow::anyhow!("--compare '{spec}': {e}")))
+        .transpose()
+}
+
 #[cfg(feature = "viewer")]
 pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
+    compare_settings(args.compare.as_deref())?;
     let world = args.scene.load(args.settings.settings()?)?;
     let options = tumble::viewer::ViewOptions {
         scene: args.scene.scene.clone(),
@@ -105,6 +185,11 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
         paused: args.paused,
         camera: args.camera.clone(),
         interrupted: super::interrupt::interrupted,
+        constraints: super::constraints_choice(args.scene.constraints.as_deref()),
+        compare: args.compare.clone(),
+        layout: layout(args.ghost),
+        shadows: !args.no_shadows,
+        parse_settings: parse_compare,
     };
     super::interrupt::install();
     tumble::viewer::run_viewer(world, options)
@@ -119,7 +204,8 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     } else {
         (1280, 720)
     });
-    let mut world = args.scene.load(args.settings.settings()?)?;
+    let compare = compare_settings(args.compare.as_deref())?;
+    let world = args.scene.load(args.settings.settings()?)?;
     let options = RecordOptions {
         output: args.output.clone(),
         seconds: args.seconds,
@@ -131,8 +217,11 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
             grid: !args.no_grid,
             constraints: !args.no_constraints,
             contacts: args.contacts,
+            shadows: !args.no_shadows,
+            layout: layout(args.ghost),
             ..DrawOptions::default()
         },
+        compare,
     };
     super::interrupt::install();
     let bar = super::progress_bar(
@@ -140,7 +229,7 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
         "recording",
     );
     let report = tumble::viewer::record(
-        &mut world,
+        world,
         &options,
         &mut |done, _| bar.set_position(done),
         &super::interrupt::interrupted,
@@ -177,6 +266,22 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::parse_size;
+    use tumble::Settings;
+
+    #[test]
+    fn compare_specs() {
+        use super::parse_compare;
+        use tumble::sim::settings::Solver;
+        assert_eq!(parse_compare("accurate"), Ok(Settings::accurate()));
+        assert_eq!(parse_compare("coursework"), Ok(Settings::default()));
+        let s = parse_compare("--solver coursework --dt 0.01").unwrap();
+        assert_eq!((s.solver, s.time_step), (Solver::Coursework, 0.01));
+        let s = parse_compare("accurate --substeps 8").unwrap();
+        assert_eq!((s.solver, s.substeps), (Solver::SoftStep, 8));
+        assert!(parse_compare("--dt").is_err());
+        assert!(parse_compare("--bogus 1").is_err());
+        assert!(parse_compare("").is_err());
+    }
 
     #[test]
     fn sizes() {

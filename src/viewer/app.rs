@@ -1,18 +1,23 @@
 //! `tumble view`: the application driving the window. Each frame runs the UI, applies its
 //! actions, simulates (capturing the recording's frames), prepares and presents the scene, and
-//! books the frame's timing; the parts live in the `window`, `input`, `present`,
-//! `window_recording` and `frame_stats` modules.
+//! books the frame's timing; between frames it polls the scene's files. The parts live in the
+//! `window`, `input`, `present`, `window_recording` and `frame_stats` modules; picking and
+//! grabbing through the view's panes in `view_pointer`.
 
 use super::camera::OrbitCamera;
+use super::compare::{self, Layout};
 use super::frame_stats::{FrameClock, FrameStats, Phase};
+use super::grab::DragPlane;
 use super::input::{self, Pointer, Release, Shortcut};
 use super::panel::{self, Action, FrameInfo, PanelState, UiFrame};
 use super::picking;
 use super::present::{self, SceneView};
+use super::scene_source::SceneSource;
 use super::session::Session;
+use super::view_pointer::{self, GrabDrag};
 use super::window::{self, Gfx, ViewRect};
 use super::window_recording::Recording;
-use crate::{ConstraintsChoice, World};
+use crate::{ConstraintsChoice, Settings, World};
 use anyhow::{Context, bail};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -39,12 +44,31 @@ pub struct ViewOptions {
     pub camera: Option<String>,
     /// Polled every frame: true once the user asked to quit (Ctrl-C in the terminal).
     pub interrupted: fn() -> bool,
+    /// The constraints the scene was loaded with (kept when it is reloaded).
+    pub constraints: ConstraintsChoice,
+    /// `--compare`: a preset or settings flags for a second world stepped alongside.
+    pub compare: Option<String>,
+    /// How compared worlds share the view.
+    pub layout: Layout,
+    /// Shadows on at the start.
+    pub shadows: bool,
+    /// Turns a compare spec into settings: the command line's own parser (the viewer cannot
+    /// depend on it).
+    pub parse_settings: fn(&str) -> Result<Settings, String>,
 }
+
+/// How often the scene's files are polled for changes.
+const FILE_POLL: Duration = Duration::from_millis(500);
 
 /// Opens the viewer on `world` and runs until the window is closed (or `--frames` are done).
 pub fn run(world: World, options: ViewOptions) -> anyhow::Result<()> {
-    let event_loop = window::open_event_loop()?;
     let mut app = App::new(world, options);
+    if let Some(spec) = &app.options.compare {
+        let settings = (app.options.parse_settings)(spec)
+            .map_err(|e| anyhow::anyhow!("--compare '{spec}': {e}"))?;
+        app.session.compare(settings);
+    }
+    let event_loop = window::open_event_loop()?;
     event_loop
         .run_app(&mut app)
         .context("the window's event loop failed")?;
@@ -57,6 +81,15 @@ pub fn run(world: World, options: ViewOptions) -> anyhow::Result<()> {
     }
     if app.options.frames.is_some() {
         app.stats.print_summary(app.session.ratio());
+        for (k, lane) in app.session.lanes.iter().enumerate() {
+            eprintln!(
+                "world {} ({}): {} steps, t = {:.3} s",
+                compare::lane_name(k),
+                compare::settings_label(&lane.world.settings),
+                lane.world.step_count,
+                lane.world.time
+            );
+        }
     }
     Ok(())
 }
@@ -76,17 +109,28 @@ struct App {
     screenshot_counter: u32,
     recording: Option<Recording>,
     repaint_at: Option<Instant>,
+    /// When the scene's files are next polled.
+    next_poll: Instant,
+    /// The grab under way (ctrl + left drag).
+    grab: Option<GrabDrag>,
     quitting: bool,
 }
 
 impl App {
     fn new(world: World, options: ViewOptions) -> App {
-        let mut session = Session::new(world, options.scene.clone());
+        let source = SceneSource::Scene {
+            name: options.scene.clone(),
+            constraints: options.constraints.clone(),
+        };
+        let mut session = Session::new(world, source);
         session.playing = !options.paused;
+        let mut panel = PanelState::default();
+        panel.draw.layout = options.layout;
+        panel.draw.shadows = options.shadows;
         App {
             options,
             session,
-            panel: PanelState::default(),
+            panel,
             camera: OrbitCamera::default(),
             camera_framed: false,
             gfx: None,
@@ -98,6 +142,8 @@ impl App {
             screenshot_counter: 0,
             recording: None,
             repaint_at: None,
+            next_poll: Instant::now() + FILE_POLL,
+            grab: None,
             quitting: false,
         }
     }
@@ -129,7 +175,8 @@ impl App {
 
     fn frame_camera(&mut self) {
         let (w, h) = self.view_rect.size();
-        self.camera.frame(&self.session.world, w / h);
+        let aspect = compare::pane_aspect(w, h, self.session.lanes.len(), self.panel.draw.layout);
+        self.camera.frame(self.session.world(), aspect);
     }
 
     /// On the first frame, once the view's size is known: frames the scene, then applies
@@ -150,29 +197,109 @@ impl App {
 
     /// Selects the body under window position `p` (or none).
     fn pick(&mut self, p: (f64, f64)) {
-        let (w, h) = self.view_rect.size();
-        let (x, y) = self.view_rect.local(p);
-        let (origin, dir) = self.camera.ray(x, y, w, h);
-        self.panel.draw.selected = picking::pick(&self.session.world, origin, dir).map(|(i, _)| i);
+        let lanes = self.session.lanes.len();
+        let ray = view_pointer::ray_at(
+            &self.camera,
+            self.view_rect,
+            lanes,
+            self.panel.draw.layout,
+            p,
+        );
+        self.panel.draw.selected = ray.and_then(|r| {
+            picking::pick(&self.session.lanes[r.lane].world, r.origin, r.dir).map(|(i, _)| i)
+        });
     }
 
-    fn load_scene(&mut self, scene: &str) {
-        let settings = self.session.world.settings.clone();
-        match crate::scene::load(scene, &ConstraintsChoice::Auto, settings) {
-            Ok(world) => {
-                for w in &world.warnings {
-                    eprintln!("warning: {w}");
-                }
-                self.panel.load_error = None;
-                self.panel.draw.selected = None;
-                self.session.replace(world, scene.to_string());
-                if let Some(gfx) = &mut self.gfx {
-                    gfx.renderer.set_world(&gfx.gpu.device, &self.session.world);
-                    gfx.window.set_title(&format!("tumble — {scene}"));
-                }
+    /// Ctrl + left press at `p`: grabs the body there (in every compared world) at the picked
+    /// point, and selects it.
+    fn start_grab(&mut self, p: (f64, f64)) {
+        let lanes = self.session.lanes.len();
+        let layout = self.panel.draw.layout;
+        let Some(ray) = view_pointer::ray_at(&self.camera, self.view_rect, lanes, layout, p) else {
+            return;
+        };
+        let world = &self.session.lanes[ray.lane].world;
+        let Some((index, t)) = picking::pick(world, ray.origin, ray.dir) else {
+            return;
+        };
+        let point = ray.origin + t * ray.dir;
+        let body = &world.bodies[index];
+        let local = body.orientation.inverse() * (point - body.position);
+        if self.session.grab(index, local, point) {
+            let forward = self.camera.target - self.camera.eye();
+            self.grab = Some(GrabDrag {
+                plane: DragPlane::facing(point, forward),
+                pane: ray.pane,
+            });
+            self.panel.draw.selected = Some(index);
+        }
+    }
+
+    /// The cursor moved to `p` during a grab: the target follows it on the grab's plane.
+    fn drag_grab(&mut self, p: (f64, f64)) {
+        let Some(grab) = self.grab else { return };
+        let (origin, dir) = view_pointer::ray_in(&self.camera, grab.pane, p);
+        if let Some(target) = grab.plane.hit(origin, dir) {
+            self.session.drag_grab(target);
+        }
+    }
+
+    /// Opens `source` (a scene picked, typed or dropped), framing it; an error leaves the
+    /// current scene running and shows in the panel.
+    fn open_scene(&mut self, source: SceneSource) {
+        match self.session.open(source) {
+            Ok(()) => {
+                self.scene_replaced();
                 self.frame_camera();
             }
             Err(e) => self.panel.load_error = Some(e.to_string()),
+        }
+    }
+
+    /// After the session's scene was replaced (opened or reloaded): the renderer's meshes, the
+    /// window title, no selection or grab.
+    fn scene_replaced(&mut self) {
+        self.panel.load_error = None;
+        self.panel.draw.selected = None;
+        self.grab = None;
+        if let Some(gfx) = &mut self.gfx {
+            gfx.renderer
+                .set_world(&gfx.gpu.device, self.session.world());
+            gfx.window
+                .set_title(&format!("tumble — {}", self.session.scene()));
+        }
+    }
+
+    /// Reloads the scene when one of its files changed (every [`FILE_POLL`]); keeps the camera.
+    fn poll_files(&mut self) {
+        let now = Instant::now();
+        if now < self.next_poll {
+            return;
+        }
+        self.next_poll = now + FILE_POLL;
+        match self.session.poll_files() {
+            Some(Ok(())) => {
+                self.scene_replaced();
+                self.panel.message = Some(format!("reloaded {}", self.session.scene()));
+            }
+            Some(Err(e)) => self.panel.load_error = Some(e.to_string()),
+            None => return,
+        }
+        self.request_redraw();
+    }
+
+    /// Starts comparing with the settings `spec` names; a spec that does not parse is shown.
+    fn start_comparing(&mut self, spec: &str) {
+        match (self.options.parse_settings)(spec) {
+            Ok(settings) => {
+                self.panel.compare_error = None;
+                self.grab = None;
+                self.session.compare(settings);
+                if let Some(recording) = &mut self.recording {
+                    recording.rewind();
+                }
+            }
+            Err(e) => self.panel.compare_error = Some(e),
         }
     }
 
@@ -200,15 +327,23 @@ impl App {
                 );
                 self.screenshot_requested = Some(PathBuf::from(name));
             }
-            Action::Load(scene) => self.load_scene(&scene),
+            Action::Load(scene) => self.open_scene(SceneSource::named(&scene)),
             Action::StartRecording => self.start_recording(),
             Action::StopRecording => self.stop_recording(),
+            Action::StepBack => self.session.step_back(),
+            Action::StepForward => self.session.step_forward(),
+            Action::Seek(index) => self.session.seek(index),
+            Action::Compare(spec) => self.start_comparing(&spec),
+            Action::StopComparing => {
+                self.session.stop_comparing();
+                self.panel.edit_lane = 0;
+            }
         }
     }
 
     fn start_recording(&mut self) {
         let path = PathBuf::from(self.panel.record_path.trim());
-        let time = self.session.world.time;
+        let time = self.session.world().time;
         match Recording::start(&path, self.view_rect, self.panel.record_fps, time) {
             Ok(recording) => {
                 self.recording = Some(recording);
@@ -238,7 +373,7 @@ impl App {
             draw: &self.panel.draw,
             rect: self.view_rect,
         };
-        if let Err(e) = recording.capture_due(gfx, &self.session.world, view) {
+        if let Err(e) = recording.capture_due(gfx, &self.session.lanes, view) {
             self.panel.message = Some(format!("recording failed: {e:#}"));
             self.recording = None;
         }
@@ -334,10 +469,10 @@ impl App {
             rect: *view_rect,
         };
         let mut failure = None;
-        session.advance(real_dt, |world| {
+        session.advance(real_dt, |lanes| {
             if failure.is_none()
                 && let Some(recording) = recording.as_mut()
-                && let Err(e) = recording.capture_due(gfx, world, view)
+                && let Err(e) = recording.capture_due(gfx, lanes, view)
             {
                 failure = Some(e);
             }
@@ -348,15 +483,23 @@ impl App {
         }
     }
 
-    /// The upload phase of the presentation, for this frame's scene and UI.
+    /// The upload phase of the presentation, for this frame's scene and UI; the camera first
+    /// follows the selected body when asked to.
     fn prepare_frame(&mut self, ui: egui::FullOutput) -> present::PreparedFrame {
+        if self.panel.follow
+            && let Some(body) = self.panel.draw.selected
+            && let Some(b) = self.session.world().bodies.get(body)
+            && b.position.is_finite()
+        {
+            self.camera.target = b.position;
+        }
         let gfx = self.gfx.as_mut().expect("checked by run_ui");
         let view = SceneView {
             camera: &self.camera,
             draw: &self.panel.draw,
             rect: self.view_rect,
         };
-        present::prepare(gfx, &self.session.world, view, ui)
+        present::prepare(gfx, &self.session.worlds(), view, ui)
     }
 
     /// The screenshot to take this frame: one asked for (P, the button), else `--screenshot`
@@ -433,15 +576,32 @@ impl App {
         taken_by_ui: bool,
     ) {
         match state {
-            ElementState::Pressed => self.pointer.pressed(button, self.view_rect, taken_by_ui),
-            ElementState::Released => {
-                if let Some(release) = self.pointer.released(button) {
-                    if let Release::Pick(p) = release {
-                        self.pick(p);
-                    }
-                    self.request_redraw();
+            ElementState::Pressed => {
+                if let Some(p) = self.pointer.pressed(button, self.view_rect, taken_by_ui) {
+                    self.start_grab(p);
                 }
             }
+            ElementState::Released => {
+                match self.pointer.released(button) {
+                    Some(Release::Pick(p)) => self.pick(p),
+                    Some(Release::EndGrab) => {
+                        self.session.release_grab();
+                        self.grab = None;
+                    }
+                    Some(Release::EndDrag) | None => {}
+                }
+                self.request_redraw();
+            }
+        }
+    }
+
+    fn on_cursor_moved(&mut self, p: (f64, f64)) {
+        let view_height = self.view_rect.0[3] as f64;
+        if self.pointer.moved(p, &mut self.camera, view_height) {
+            if self.pointer.grabbing() {
+                self.drag_grab(p);
+            }
+            self.request_redraw();
         }
     }
 }
@@ -457,7 +617,7 @@ impl ApplicationHandler for App {
             &self.options.scene,
             size,
             self.options.vsync,
-            &self.session.world,
+            self.session.world(),
         );
         match gfx {
             Ok(gfx) => self.gfx = Some(gfx),
@@ -482,7 +642,11 @@ impl ApplicationHandler for App {
                     self.fail(event_loop, e);
                 }
             }
-            WindowEvent::ModifiersChanged(m) => self.pointer.shift = m.state().shift_key(),
+            WindowEvent::ModifiersChanged(m) => {
+                self.pointer.shift = m.state().shift_key();
+                self.pointer.ctrl = m.state().control_key();
+            }
+            WindowEvent::DroppedFile(path) => self.open_scene(SceneSource::dropped(&path)),
             WindowEvent::KeyboardInput { event, .. }
                 if !response.consumed
                     && !keyboard_to_egui
@@ -491,13 +655,7 @@ impl ApplicationHandler for App {
                 self.on_key(&event.logical_key);
             }
             WindowEvent::CursorMoved { position, .. } => {
-                let view_height = self.view_rect.0[3] as f64;
-                if self
-                    .pointer
-                    .moved((position.x, position.y), &mut self.camera, view_height)
-                {
-                    self.request_redraw();
-                }
+                self.on_cursor_moved((position.x, position.y));
             }
             WindowEvent::CursorLeft { .. } => self.pointer.cursor = None,
             WindowEvent::MouseInput { state, button, .. } => {
@@ -517,20 +675,25 @@ impl ApplicationHandler for App {
         if self.quitting || self.poll_interrupted(event_loop) {
             return;
         }
+        self.poll_files();
         let Some(gfx) = &self.gfx else { return };
         if self.continuous() {
             gfx.window.request_redraw();
             event_loop.set_control_flow(ControlFlow::Poll);
-        } else if let Some(at) = self.repaint_at {
-            if Instant::now() >= at {
-                self.repaint_at = None;
-                gfx.window.request_redraw();
-                event_loop.set_control_flow(ControlFlow::Poll);
-            } else {
-                event_loop.set_control_flow(ControlFlow::WaitUntil(at));
-            }
-        } else {
-            event_loop.set_control_flow(ControlFlow::Wait);
+            return;
+        }
+        if self.repaint_at.is_some_and(|at| Instant::now() >= at) {
+            self.repaint_at = None;
+            gfx.window.request_redraw();
+            event_loop.set_control_flow(ControlFlow::Poll);
+            return;
+        }
+        // Wake for egui's repaint and for the next poll of the scene's files.
+        let watching = self.session.auto_reload && self.session.watched_files().next().is_some();
+        let poll = watching.then_some(self.next_poll);
+        match self.repaint_at.into_iter().chain(poll).min() {
+            Some(at) => event_loop.set_control_flow(ControlFlow::WaitUntil(at)),
+            None => event_loop.set_control_flow(ControlFlow::Wait),
         }
     }
 }

@@ -1,6 +1,7 @@
 //! Mouse and keyboard in the 3D view: left drag orbits, right or middle (or shift) drag pans,
-//! the wheel zooms, a left click without drag picks a body; and the keyboard shortcuts. Events
-//! egui takes (over the panel, or typing in a text field) never reach here.
+//! ctrl + left drag grabs a body, the wheel zooms, a left click without drag picks a body; and
+//! the keyboard shortcuts. Events egui takes (over the panel, or typing in a text field) never
+//! reach here.
 
 use super::camera::OrbitCamera;
 use super::panel::Action;
@@ -16,6 +17,8 @@ struct Drag {
     start: (f64, f64),
     last: (f64, f64),
     moved: bool,
+    /// Started with ctrl: the cursor pulls a grabbed body, the camera stays.
+    grab: bool,
 }
 
 /// The pointer between events.
@@ -26,6 +29,8 @@ pub struct Pointer {
     drag: Option<Drag>,
     /// Shift held: a left drag pans.
     pub shift: bool,
+    /// Ctrl held: a left drag grabs.
+    pub ctrl: bool,
 }
 
 /// How a button's release ends its drag.
@@ -34,11 +39,18 @@ pub enum Release {
     Pick((f64, f64)),
     /// The end of an orbit or pan, or a click of another button.
     EndDrag,
+    /// The end of a grab.
+    EndGrab,
 }
 
 impl Pointer {
     pub fn dragging(&self) -> bool {
         self.drag.is_some()
+    }
+
+    /// Whether a ctrl + left drag (a grab) is under way.
+    pub fn grabbing(&self) -> bool {
+        self.drag.as_ref().is_some_and(|d| d.grab)
     }
 
     /// Whether the cursor is over the 3D view.
@@ -47,7 +59,7 @@ impl Pointer {
     }
 
     /// The cursor moved to `p`: while dragging, orbits or pans `camera` (a view `view_height`
-    /// pixels high). Returns whether the camera moved.
+    /// pixels high), or, for a grab, leaves it be. Returns whether something is dragged.
     pub fn moved(&mut self, p: (f64, f64), camera: &mut OrbitCamera, view_height: f64) -> bool {
         self.cursor = Some(p);
         let Some(drag) = &mut self.drag else {
@@ -57,6 +69,9 @@ impl Pointer {
         drag.last = p;
         if (p.0 - drag.start.0).abs() + (p.1 - drag.start.1).abs() > CLICK_SLOP {
             drag.moved = true;
+        }
+        if drag.grab {
+            return true;
         }
         let pan = drag.button != MouseButton::Left || self.shift;
         if pan {
@@ -68,26 +83,35 @@ impl Pointer {
     }
 
     /// A button went down: starts a drag when the cursor is over the view, egui did not take the
-    /// press (`taken_by_ui`) and no other drag is under way.
-    pub fn pressed(&mut self, button: MouseButton, view: ViewRect, taken_by_ui: bool) {
-        if let Some(p) = self.cursor
-            && !taken_by_ui
-            && view.contains(p)
-            && self.drag.is_none()
-        {
-            self.drag = Some(Drag {
-                button,
-                start: p,
-                last: p,
-                moved: false,
-            });
+    /// press (`taken_by_ui`) and no other drag is under way. Returns the cursor position when
+    /// the drag is a grab (ctrl + left), for the app to pick the body there.
+    pub fn pressed(
+        &mut self,
+        button: MouseButton,
+        view: ViewRect,
+        taken_by_ui: bool,
+    ) -> Option<(f64, f64)> {
+        let p = self.cursor?;
+        if taken_by_ui || !view.contains(p) || self.drag.is_some() {
+            return None;
         }
+        let grab = self.ctrl && button == MouseButton::Left;
+        self.drag = Some(Drag {
+            button,
+            start: p,
+            last: p,
+            moved: false,
+            grab,
+        });
+        grab.then_some(p)
     }
 
     /// A button went up: ends the drag it started, if any.
     pub fn released(&mut self, button: MouseButton) -> Option<Release> {
         let drag = self.drag.take_if(|d| d.button == button)?;
-        Some(if !drag.moved && button == MouseButton::Left {
+        Some(if drag.grab {
+            Release::EndGrab
+        } else if !drag.moved && button == MouseButton::Left {
             Release::Pick(drag.start)
         } else {
             Release::EndDrag
@@ -110,10 +134,13 @@ pub enum Shortcut {
     Deselect,
 }
 
-/// Space play/pause, S step, R reset, F frame, P screenshot, Esc deselect.
+/// Space play/pause, S step, R reset, F frame, P screenshot, Esc deselect, Left / Right one
+/// state back / forward in the history.
 pub fn shortcut(key: &Key) -> Option<Shortcut> {
     match key {
         Key::Named(NamedKey::Space) => Some(Shortcut::Action(Action::TogglePlay)),
+        Key::Named(NamedKey::ArrowLeft) => Some(Shortcut::Action(Action::StepBack)),
+        Key::Named(NamedKey::ArrowRight) => Some(Shortcut::Action(Action::StepForward)),
         Key::Named(NamedKey::Escape) => Some(Shortcut::Deselect),
         Key::Character(c) => match c.to_lowercase().as_str() {
             "s" => Some(Shortcut::Action(Action::Step)),

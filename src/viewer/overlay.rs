@@ -1,6 +1,6 @@
 //! Line and plane geometry drawn with the bodies, built on the CPU in world space: the ground
 //! plane and grid (once per scene), and each frame the constraint segments coloured by violation,
-//! the outline of the selected body and the contact markers.
+//! the outline of the selected body, the grab and the contact markers.
 
 use super::palette;
 use super::pipelines::LineVertex;
@@ -74,6 +74,19 @@ pub fn selection_outline(lines: &mut Vec<LineVertex>, world: &World, index: usiz
     }
 }
 
+/// The grab: a line from the grabbed point to its target, with a small cross at the target.
+pub fn grab_line(lines: &mut Vec<LineVertex>, world: &World, scene_scale: f64) {
+    let Some((point, target)) = super::grab::line(world) else {
+        return;
+    };
+    let color = with_alpha(palette::linear([0.55, 0.95, 1.0]), 1.0);
+    push_line(lines, point, target, color);
+    let s = 0.01 * scene_scale;
+    for axis in [DVec3::X, DVec3::Y, DVec3::Z] {
+        push_line(lines, target - s * axis, target + s * axis, color);
+    }
+}
+
 /// A small cross at each contact point and its normal, sized by `scene_scale`.
 pub fn contact_markers(lines: &mut Vec<LineVertex>, world: &World, scene_scale: f64) {
     let point_color = with_alpha(palette::linear([1.0, 0.95, 0.2]), 1.0);
@@ -92,6 +105,8 @@ pub struct Ground {
     pub vertices: Vec<LineVertex>,
     pub plane: Range<u32>,
     pub grid: Range<u32>,
+    /// Half the side of the square.
+    pub extent: f64,
 }
 
 /// The ground under a scene spanning `lo`..`hi`: around the origin, past the bodies, and at least
@@ -139,6 +154,7 @@ pub fn ground(lo: DVec3, hi: DVec3) -> Ground {
         vertices,
         plane: 0..6,
         grid,
+        extent,
     }
 }
 

@@ -1,8 +1,10 @@
-//! The egui side panel: controls, every simulation setting, live statistics and plots; and the
-//! overlay over the 3D view.
+//! The egui side panel: controls, the comparison, the rewind timeline, every simulation setting,
+//! live statistics and plots; and the overlay over the 3D view with each pane's label.
 
+use super::compare::{self, Layout};
+use super::labels::Label;
 use super::renderer::DrawOptions;
-use super::session::Session;
+use super::session::{Lane, Session};
 use crate::sim::{Choice, Settings};
 use egui::{Color32, RichText};
 use egui_plot::{Line, Plot, PlotPoints};
@@ -19,6 +21,14 @@ pub enum Action {
     Load(String),
     StartRecording,
     StopRecording,
+    /// One state back / forward in the history (Left / Right).
+    StepBack,
+    StepForward,
+    /// To entry k of the history (the timeline slider).
+    Seek(usize),
+    /// Compare with the settings of a preset or of command-line flags.
+    Compare(String),
+    StopComparing,
 }
 
 /// Panel state that lives across frames.
@@ -30,6 +40,13 @@ pub struct PanelState {
     pub message: Option<String>,
     pub record_path: String,
     pub record_fps: f64,
+    /// The compare field: a preset (`accurate`, `coursework`) and/or settings flags.
+    pub compare_spec: String,
+    pub compare_error: Option<String>,
+    /// Which world's settings the settings section edits when comparing.
+    pub edit_lane: usize,
+    /// The camera keeps the selected body at the centre.
+    pub follow: bool,
 }
 
 impl Default for PanelState {
@@ -46,6 +63,10 @@ impl Default for PanelState {
             message: None,
             record_path: record_path.into(),
             record_fps: 30.0,
+            compare_spec: "accurate".into(),
+            compare_error: None,
+            edit_lane: 0,
+            follow: false,
         }
     }
 }
@@ -116,33 +137,168 @@ pub fn show(
     info: &FrameInfo,
 ) -> Vec<Action> {
     let mut actions = Vec::new();
-    egui::ScrollArea::vertical().auto_shrink([true, false]).show(ui, |ui| {
-        ui.heading("tumble");
-        playback_controls(ui, session.playing, &mut actions);
-        recording_controls(ui, state, info.recording, &mut actions);
-        if let Some(message) = &state.message {
-            ui.label(RichText::new(message).small());
-        }
-        ui.separator();
-
-        scene_picker(ui, session, state, &mut actions);
-        ui.separator();
-
-        egui::CollapsingHeader::new("Simulation settings").default_open(true).show(ui, |ui| settings_ui(ui, &mut session.world.settings));
-
-        egui::CollapsingHeader::new("Display").default_open(true).show(ui, |ui| display_ui(ui, &mut state.draw));
-
-        egui::CollapsingHeader::new("Statistics").default_open(true).show(ui, |ui| statistics_ui(ui, session, info));
-
-        egui::CollapsingHeader::new("Energy and constraint violation").default_open(true).show(ui, |ui| plots_ui(ui, session));
-
-        egui::CollapsingHeader::new("Selected body").default_open(true).show(ui, |ui| selection_ui(ui, session, state.draw.selected));
-
-        ui.separator();
-        ui.small("Drag: orbit · right/middle drag or shift-drag: pan · wheel: zoom · click: pick a body");
-        ui.small("Space play/pause · S step · R reset · F frame · P screenshot · Esc deselect");
-    });
+    let section = |ui: &mut egui::Ui, title: &str, add: &mut dyn FnMut(&mut egui::Ui)| {
+        egui::CollapsingHeader::new(title)
+            .default_open(true)
+            .show(ui, |ui| add(ui));
+    };
+    egui::ScrollArea::vertical()
+        .auto_shrink([true, false])
+        .show(ui, |ui| {
+            ui.heading("tumble");
+            playback_controls(ui, session.playing, &mut actions);
+            recording_controls(ui, state, info.recording, &mut actions);
+            if let Some(message) = &state.message {
+                ui.label(RichText::new(message).small());
+            }
+            ui.separator();
+            scene_picker(ui, session, state, &mut actions);
+            ui.separator();
+            section(ui, "Compare", &mut |ui| {
+                compare_ui(ui, session, state, &mut actions)
+            });
+            section(ui, "Rewind", &mut |ui| {
+                timeline_ui(ui, session, &mut actions)
+            });
+            section(ui, "Simulation settings", &mut |ui| {
+                lane_settings_ui(ui, session, state)
+            });
+            section(ui, "Display", &mut |ui| display_ui(ui, session, state));
+            section(ui, "Statistics", &mut |ui| {
+                statistics_ui(ui, session, info, state.edit_lane)
+            });
+            section(ui, "Energy and constraint violation", &mut |ui| {
+                plots_ui(ui, session)
+            });
+            section(ui, "Selected body", &mut |ui| {
+                selection_ui(ui, session, state.draw.selected)
+            });
+            ui.separator();
+            ui.small(
+                "Drag: orbit · right/middle drag or shift-drag: pan · wheel: zoom · \
+                 click: pick a body · ctrl-drag: grab a body",
+            );
+            ui.small(
+                "Space play/pause · S step · Left/Right back/forward (paused) · R reset · \
+                 F frame · P screenshot · Esc deselect · drop a scene or mesh file to open it",
+            );
+        });
     actions
+}
+
+/// Starting and ending a comparison, its layout, and why a spec was refused.
+fn compare_ui(
+    ui: &mut egui::Ui,
+    session: &Session,
+    state: &mut PanelState,
+    actions: &mut Vec<Action>,
+) {
+    ui.horizontal(|ui| {
+        let edit = ui.add(
+            egui::TextEdit::singleline(&mut state.compare_spec)
+                .hint_text("accurate / --solver coursework --dt 0.01")
+                .desired_width(190.0),
+        );
+        let enter = edit.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
+        let label = if session.comparing() {
+            "Restart"
+        } else {
+            "Compare"
+        };
+        if ui
+            .button(label)
+            .on_hover_text(
+                "Step a second world of the scene with these settings alongside, from the start",
+            )
+            .clicked()
+            || enter
+        {
+            actions.push(Action::Compare(state.compare_spec.trim().to_string()));
+        }
+        if session.comparing() && ui.button("Stop").clicked() {
+            actions.push(Action::StopComparing);
+        }
+    });
+    if let Some(error) = &state.compare_error {
+        ui.colored_label(Color32::from_rgb(255, 110, 110), error);
+    }
+    if session.comparing() {
+        ui.horizontal(|ui| {
+            ui.radio_value(&mut state.draw.layout, Layout::SideBySide, "side by side");
+            ui.radio_value(&mut state.draw.layout, Layout::Ghost, "overlaid (ghost)");
+        });
+        for (k, lane) in session.lanes.iter().enumerate() {
+            ui.label(format!(
+                "{}: {}",
+                compare::lane_name(k),
+                compare::settings_label(&lane.world.settings)
+            ));
+        }
+    }
+}
+
+/// The history: a slider over its states, what it spans, and its memory budget.
+fn timeline_ui(ui: &mut egui::Ui, session: &mut Session, actions: &mut Vec<Action>) {
+    let timeline = &session.timeline;
+    let mut index = timeline.cursor();
+    let last = timeline.len().saturating_sub(1);
+    let first_step = timeline.step_at(0).unwrap_or(0);
+    let slider = egui::Slider::new(&mut index, 0..=last.max(1))
+        .custom_formatter(move |v, _| format!("step {}", first_step + v as u64))
+        .show_value(true);
+    if ui
+        .add_enabled(last > 0, slider)
+        .on_hover_text(
+            "Scrub the history (pauses); resuming from a past state drops the states after it",
+        )
+        .changed()
+    {
+        actions.push(Action::Seek(index));
+    }
+    ui.horizontal(|ui| {
+        if ui.button("<").on_hover_text("Left arrow").clicked() {
+            actions.push(Action::StepBack);
+        }
+        if ui.button(">").on_hover_text("Right arrow").clicked() {
+            actions.push(Action::StepForward);
+        }
+        let span = timeline.span();
+        ui.label(format!(
+            "{:.2} s, steps {}..{}, {:.1} MiB",
+            span.seconds,
+            span.first_step,
+            span.last_step,
+            span.bytes as f64 / (1 << 20) as f64
+        ));
+    });
+    let mut mib = (session.timeline.budget() >> 20) as u64;
+    ui.horizontal(|ui| {
+        ui.label("memory budget");
+        let budget = egui::DragValue::new(&mut mib)
+            .range(1..=65536)
+            .suffix(" MiB");
+        if ui.add(budget).changed() {
+            session.timeline.set_budget((mib as usize) << 20);
+        }
+    });
+}
+
+/// The settings of the first world, or of the one picked when comparing.
+fn lane_settings_ui(ui: &mut egui::Ui, session: &mut Session, state: &mut PanelState) {
+    if session.comparing() {
+        ui.horizontal(|ui| {
+            ui.label("edit");
+            for k in 0..session.lanes.len() {
+                ui.radio_value(
+                    &mut state.edit_lane,
+                    k,
+                    format!("world {}", compare::lane_name(k)),
+                );
+            }
+        });
+    }
+    let lane = state.edit_lane.min(session.lanes.len() - 1);
+    settings_ui(ui, &mut session.lanes[lane].world.settings);
 }
 
 /// Play/pause, step, reset, frame and screenshot buttons, with their keys as hover text.
@@ -210,22 +366,40 @@ fn recording_controls(
     });
 }
 
-fn display_ui(ui: &mut egui::Ui, draw: &mut DrawOptions) {
+/// What the view shows, how the camera follows, and the grab's stiffness.
+fn display_ui(ui: &mut egui::Ui, session: &mut Session, state: &mut PanelState) {
+    let draw = &mut state.draw;
+    ui.checkbox(&mut draw.shadows, "Shadows")
+        .on_hover_text("From the key light: a 2048² shadow map with 3x3 filtering");
     ui.checkbox(&mut draw.grid, "Ground grid");
     ui.checkbox(&mut draw.constraints, "Constraint segments")
         .on_hover_text(
             "Green within bounds, through yellow to red at 10% of the rest length outside them",
         );
     ui.checkbox(&mut draw.contacts, "Contact points and normals");
+    ui.add_enabled(
+        draw.selected.is_some(),
+        egui::Checkbox::new(&mut state.follow, "Camera follows the selected body"),
+    );
+    ui.add(
+        egui::Slider::new(&mut session.grab_hertz, 0.5..=20.0)
+            .logarithmic(true)
+            .text("grab stiffness (Hz)"),
+    )
+    .on_hover_text(
+        "Natural frequency of the ctrl-drag spring, critically damped; its force scales with \
+         the body's mass (at most a quarter of the step rate)",
+    );
 }
 
 fn scene_picker(
     ui: &mut egui::Ui,
-    session: &Session,
+    session: &mut Session,
     state: &mut PanelState,
     actions: &mut Vec<Action>,
 ) {
-    let mut choice = session.scene.clone();
+    let scene = session.scene();
+    let mut choice = scene.clone();
     ui.horizontal(|ui| {
         ui.label("Scene");
         egui::ComboBox::from_id_salt("scene")
@@ -236,7 +410,7 @@ fn scene_picker(
                 }
             });
     });
-    if choice != session.scene {
+    if choice != scene {
         actions.push(Action::Load(choice));
     }
     ui.horizontal(|ui| {
@@ -253,7 +427,8 @@ fn scene_picker(
     if let Some(error) = &state.load_error {
         ui.colored_label(Color32::from_rgb(255, 110, 110), error);
     }
-    let world = &session.world;
+    watch_ui(ui, session);
+    let world = session.world();
     ui.label(format!(
         "{} bodies ({} fixed), {} shapes, {} constraints",
         world.bodies.len(),
@@ -261,6 +436,19 @@ fn scene_picker(
         world.shapes.len(),
         world.constraints.len()
     ));
+}
+
+/// The reload toggle and the files it watches.
+fn watch_ui(ui: &mut egui::Ui, session: &mut Session) {
+    let files: Vec<String> = session
+        .watched_files()
+        .map(|f| f.display().to_string())
+        .collect();
+    if files.is_empty() {
+        return;
+    }
+    ui.checkbox(&mut session.auto_reload, "Reload when the files change")
+        .on_hover_text(files.join("\n"));
 }
 
 /// Every field of [`Settings`]. The destructuring has no `..`: a new setting in the core does
@@ -369,14 +557,22 @@ fn enum_choice<T: Choice>(ui: &mut egui::Ui, label: &str, value: &mut T) {
         });
 }
 
-fn statistics_ui(ui: &mut egui::Ui, session: &Session, info: &FrameInfo) {
+/// Frame, stepping and world statistics; when comparing, of the world whose settings are edited.
+fn statistics_ui(ui: &mut egui::Ui, session: &Session, info: &FrameInfo, lane: usize) {
+    let lane = lane.min(session.lanes.len() - 1);
+    if session.comparing() {
+        ui.label(format!(
+            "world {} (pick it under Simulation settings)",
+            compare::lane_name(lane)
+        ));
+    }
     egui::Grid::new("stats")
         .num_columns(2)
         .striped(false)
         .show(ui, |ui| {
             frame_rows(ui, info);
-            stepping_rows(ui, session);
-            world_rows(ui, session);
+            stepping_rows(ui, session, &session.lanes[lane]);
+            world_rows(ui, &session.lanes[lane]);
             stat(
                 ui,
                 "draw calls",
@@ -406,8 +602,8 @@ fn frame_rows(ui: &mut egui::Ui, info: &FrameInfo) {
 }
 
 /// Simulated time, the pace against real time, and this frame's steps with their stage timings.
-fn stepping_rows(ui: &mut egui::Ui, session: &Session) {
-    let world = &session.world;
+fn stepping_rows(ui: &mut egui::Ui, session: &Session, lane: &Lane) {
+    let world = &lane.world;
     stat(
         ui,
         "simulated",
@@ -429,9 +625,9 @@ fn stepping_rows(ui: &mut egui::Ui, session: &Session) {
             if session.playing { "-" } else { "paused" },
         ),
     }
-    stat(ui, "steps this frame", format!("{}", session.frame_steps));
-    let steps = session.frame_steps.max(1) as f64;
-    for (stage, seconds) in session.frame_timings.iter() {
+    stat(ui, "steps this frame", format!("{}", lane.frame_steps));
+    let steps = lane.frame_steps.max(1) as f64;
+    for (stage, seconds) in lane.frame_timings.iter() {
         stat(
             ui,
             &format!("  {}", stage.name().replace('_', " ")),
@@ -441,14 +637,14 @@ fn stepping_rows(ui: &mut egui::Ui, session: &Session) {
     stat(
         ui,
         "  total",
-        format!("{:.3} ms/step", 1e3 * session.frame_timings.total() / steps),
+        format!("{:.3} ms/step", 1e3 * lane.frame_timings.total() / steps),
     );
 }
 
 /// Bodies, contacts and constraint work of the last step, energy, and frozen bodies.
-fn world_rows(ui: &mut egui::Ui, session: &Session) {
-    let world = &session.world;
-    let last = &session.last;
+fn world_rows(ui: &mut egui::Ui, lane: &Lane) {
+    let world = &lane.world;
+    let last = &lane.last;
     stat(ui, "bodies", format!("{}", world.bodies.len()));
     stat(
         ui,
@@ -493,41 +689,58 @@ fn world_rows(ui: &mut egui::Ui, session: &Session) {
     }
 }
 
+/// Total energy and largest constraint violation over the last seconds, one curve per world.
 fn plots_ui(ui: &mut egui::Ui, session: &Session) {
-    let energy: PlotPoints = session.history.iter().map(|s| [s.time, s.energy]).collect();
-    Plot::new("energy_plot")
-        .height(90.0)
-        .allow_zoom(false)
-        .allow_drag(false)
-        .allow_scroll(false)
-        .y_axis_label("energy")
-        .show(ui, |plot| plot.line(Line::new("total energy", energy)));
-    let violation: PlotPoints = session
-        .history
-        .iter()
-        .map(|s| [s.time, s.violation])
-        .collect();
-    Plot::new("violation_plot")
-        .height(90.0)
-        .allow_zoom(false)
-        .allow_drag(false)
-        .allow_scroll(false)
+    let curves = |value: fn(&super::session::Sample) -> f64| {
+        session
+            .lanes
+            .iter()
+            .enumerate()
+            .map(move |(k, lane)| {
+                let points: PlotPoints = lane.plot.iter().map(|s| [s.time, value(s)]).collect();
+                let name = format!(
+                    "{}: {}",
+                    compare::lane_name(k),
+                    compare::settings_label(&lane.world.settings)
+                );
+                Line::new(name, points).color(compare::lane_color(k))
+            })
+            .collect::<Vec<_>>()
+    };
+    let legend = session.comparing();
+    let plot = |id: &str, label: &str| {
+        let plot = Plot::new(id.to_string())
+            .height(90.0)
+            .allow_zoom(false)
+            .allow_drag(false)
+            .allow_scroll(false)
+            .y_axis_label(label.to_string());
+        if legend {
+            plot.legend(egui_plot::Legend::default())
+        } else {
+            plot
+        }
+    };
+    plot("energy_plot", "energy").show(ui, |p| {
+        for line in curves(|s| s.energy) {
+            p.line(line);
+        }
+    });
+    plot("violation_plot", "max violation")
         .include_y(0.0)
-        .y_axis_label("max violation")
-        .show(ui, |plot| {
-            plot.line(
-                Line::new("max constraint violation", violation)
-                    .color(Color32::from_rgb(240, 120, 60)),
-            )
+        .show(ui, |p| {
+            for line in curves(|s| s.violation) {
+                p.line(line);
+            }
         });
 }
 
 fn selection_ui(ui: &mut egui::Ui, session: &Session, selected: Option<usize>) {
-    let Some(index) = selected.filter(|&i| i < session.world.bodies.len()) else {
+    let Some(index) = selected.filter(|&i| i < session.world().bodies.len()) else {
         ui.weak("Click a body to inspect it.");
         return;
     };
-    let world = &session.world;
+    let world = session.world();
     let body = &world.bodies[index];
     let v3 = |v: glam::DVec3| format!("({:.3}, {:.3}, {:.3})", v.x, v.y, v.z);
     egui::Grid::new("selected")
@@ -569,45 +782,104 @@ fn selection_ui(ui: &mut egui::Ui, session: &Session, selected: Option<usize>) {
         });
 }
 
-/// A few lines over the top left corner of the 3D view: time, play state, the sim/real ratio
-/// when the simulation falls behind, and the picked body.
+/// Over the 3D view: in the top left corner of each pane the world's label when comparing, and
+/// over the first the scene, time, play or rewind state, the sim/real ratio when the simulation
+/// falls behind, the grab's force and the picked body.
 pub fn overlay(ctx: &egui::Context, view: egui::Rect, session: &Session, state: &PanelState) {
-    egui::Area::new(egui::Id::unique("view_overlay"))
-        .fixed_pos(view.min + egui::vec2(10.0, 8.0))
-        .interactable(false)
-        .show(ctx, |ui| {
-            ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Extend);
-            let world = &session.world;
-            let play = if session.playing { "" } else { "  (paused)" };
-            ui.label(
-                RichText::new(format!("{}  t = {:.2} s{play}", session.scene, world.time))
-                    .color(Color32::from_gray(210)),
-            );
-            if session.playing
-                && let Some(r) = session.ratio()
-                && (r < 0.97 || session.behind)
-            {
-                ui.label(
-                    RichText::new(format!("simulation at {r:.2}x real time (cannot keep up)"))
-                        .color(Color32::from_rgb(255, 170, 60)),
-                );
-            }
-            if let Some(index) = state.draw.selected.filter(|&i| i < world.bodies.len()) {
-                let b = &world.bodies[index];
-                let v3 = |v: glam::DVec3| format!("({:.2}, {:.2}, {:.2})", v.x, v.y, v.z);
-                let mass = if b.fixed {
-                    "fixed".to_string()
-                } else {
-                    format!("{:.3}", b.mass)
-                };
-                ui.label(
-                    RichText::new(format!(
-                        "body {index}: mass {mass}\nvelocity {}\nangular velocity {}",
-                        v3(b.linear_velocity),
-                        v3(b.angular_velocity)
-                    ))
-                    .color(Color32::from_rgb(255, 220, 120)),
-                );
-            }
-        });
+    let rect = [view.min.x, view.min.y, view.width(), view.height()];
+    let panes = compare::panes(rect, session.lanes.len(), state.draw.layout);
+    let painter = ctx.layer_painter(egui::LayerId::background());
+    for pane in &panes[1..] {
+        let x = pane.rect[0];
+        painter.vline(
+            x,
+            view.y_range(),
+            egui::Stroke::new(2.0, Color32::from_gray(90)),
+        );
+    }
+    for (k, pane) in panes.iter().enumerate() {
+        let corner = egui::pos2(pane.rect[0], pane.rect[1]) + egui::vec2(10.0, 8.0);
+        egui::Area::new(egui::Id::unique(("view_overlay", k)))
+            .fixed_pos(corner)
+            .interactable(false)
+            .show(ctx, |ui| {
+                ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Extend);
+                if k == 0 {
+                    status_lines(ui, session);
+                }
+                if session.comparing() {
+                    for &k in &pane.lanes {
+                        let lane = &session.lanes[k];
+                        Label::of_lane(k, &lane.world, &lane.last, pane.lanes.len() > 1).show(ui);
+                    }
+                }
+                if k == 0 {
+                    selection_lines(ui, session, state);
+                }
+            });
+    }
+}
+
+/// The scene and time, paused or rewound, and the sim/real ratio when behind.
+fn status_lines(ui: &mut egui::Ui, session: &Session) {
+    let world = session.world();
+    let timeline = &session.timeline;
+    let state = if !timeline.at_end() {
+        format!(
+            "  (rewound: {} of {} states)",
+            timeline.cursor() + 1,
+            timeline.len()
+        )
+    } else if session.playing {
+        String::new()
+    } else {
+        "  (paused)".into()
+    };
+    ui.label(
+        RichText::new(format!(
+            "{}  t = {:.2} s{state}",
+            session.scene(),
+            world.time
+        ))
+        .color(Color32::from_gray(210)),
+    );
+    if session.playing
+        && let Some(r) = session.ratio()
+        && (r < 0.97 || session.behind)
+    {
+        ui.label(
+            RichText::new(format!("simulation at {r:.2}x real time (cannot keep up)"))
+                .color(Color32::from_rgb(255, 170, 60)),
+        );
+    }
+}
+
+/// The grab's force and the picked body's mass and velocities.
+fn selection_lines(ui: &mut egui::Ui, session: &Session, state: &PanelState) {
+    let world = session.world();
+    if let Some((_, force)) = super::grab::force(world) {
+        let text = if session.playing {
+            format!("grab: force {:.4e}", force.length())
+        } else {
+            "grab: moving the body (paused)".to_string()
+        };
+        ui.label(RichText::new(text).color(Color32::from_rgb(140, 240, 255)));
+    }
+    if let Some(index) = state.draw.selected.filter(|&i| i < world.bodies.len()) {
+        let b = &world.bodies[index];
+        let v3 = |v: glam::DVec3| format!("({:.2}, {:.2}, {:.2})", v.x, v.y, v.z);
+        let mass = if b.fixed {
+            "fixed".to_string()
+        } else {
+            format!("{:.3}", b.mass)
+        };
+        ui.label(
+            RichText::new(format!(
+                "body {index}: mass {mass}\nvelocity {}\nangular velocity {}",
+                v3(b.linear_velocity),
+                v3(b.angular_velocity)
+            ))
+            .color(Color32::from_rgb(255, 220, 120)),
+        );
+    }
 }

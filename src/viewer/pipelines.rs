@@ -1,15 +1,17 @@
 //! The scene shader's interface and its render pipelines: the uniform block, the vertex formats
 //! (mesh vertices, per-body instances, coloured line vertices) and one pipeline per kind of
-//! geometry, all sharing `scene.wgsl` and the globals bind group.
+//! geometry, all sharing `scene.wgsl`, the globals bind group (group 0) and a shadow map
+//! (group 1).
 
 use super::gpu::buffer;
+use super::shadow;
 use super::targets::DEPTH_FORMAT;
 use bytemuck::{Pod, Zeroable};
 
 const SHADER: &str = include_str!("../../shaders/scene.wgsl");
 
 /// Vertex inputs of `vs_body`: the mesh vertex, and the body's instance at locations 2 to 4.
-const BODY_BUFFERS: [Option<wgpu::VertexBufferLayout<'static>>; 2] = [
+pub(super) const BODY_BUFFERS: [Option<wgpu::VertexBufferLayout<'static>>; 2] = [
     Some(wgpu::VertexBufferLayout {
         array_stride: std::mem::size_of::<MeshVertex>() as u64,
         step_mode: wgpu::VertexStepMode::Vertex,
@@ -35,9 +37,14 @@ const LINE_BUFFERS: [Option<wgpu::VertexBufferLayout<'static>>; 1] =
 #[derive(Clone, Copy, Pod, Zeroable)]
 pub struct Globals {
     pub view_proj: [[f32; 4]; 4],
+    /// World to the shadow map's clip space.
+    pub light_view_proj: [[f32; 4]; 4],
     /// Direction towards the light (x, y, z) and 1 for unlit drawing (w).
     pub light: [f32; 4],
     pub eye: [f32; 4],
+    /// 1 with shadows (x), one shadow-map texel in texture coordinates (y), how far receivers
+    /// look up the map along their normal, in world units (z).
+    pub shadow: [f32; 4],
 }
 
 /// One vertex of a shape's flat-shaded mesh, in body space.
@@ -74,15 +81,75 @@ pub struct ScenePipelines {
     pub module: wgpu::ShaderModule,
     pub globals: wgpu::Buffer,
     pub globals_bind_group: wgpu::BindGroup,
+    /// Layout of the shadow map's bind group (group 1).
+    pub shadow_layout: wgpu::BindGroupLayout,
+    /// Bodies into a shadow map, from the light.
+    pub shadow: wgpu::RenderPipeline,
+    /// The pipelines of lit surfaces that sample the shadow map, and the same without shadows
+    /// (the lookup compiled out: software rasterisers pay for it even when skipped).
+    pub shadowed: SurfacePipelines,
+    pub unshadowed: SurfacePipelines,
+    /// Depth-tested lines: constraint segments, selection outline.
+    pub lines: wgpu::RenderPipeline,
+    /// Lines over everything: contact markers lie inside the overlapping bodies.
+    pub overlay: wgpu::RenderPipeline,
+}
+
+/// The pipelines of lit surfaces, which receive shadows.
+pub struct SurfacePipelines {
     /// Instanced, depth-tested, back-face culled triangles.
     pub bodies: wgpu::RenderPipeline,
-    /// Depth-tested lines: grid, constraint segments, selection outline.
-    pub lines: wgpu::RenderPipeline,
+    /// A compared world's bodies over the first one's: blended, writing no depth.
+    pub ghosts: wgpu::RenderPipeline,
     /// The ground plane, painted first and writing no depth: everything is drawn over it,
     /// including the parts of bodies that sink below y = 0.
     pub ground: wgpu::RenderPipeline,
-    /// Lines over everything: contact markers lie inside the overlapping bodies.
-    pub overlay: wgpu::RenderPipeline,
+    /// The ground grid's lines, depth-tested, shaded like the plane.
+    pub grid: wgpu::RenderPipeline,
+}
+
+impl SurfacePipelines {
+    /// With the shader's `SHADOWS` constant set to `shadows`.
+    fn new(base: &PipelineBase<'_>, shadows: bool) -> SurfacePipelines {
+        use wgpu::CompareFunction::{Always, Less, LessEqual};
+        use wgpu::PrimitiveTopology::{LineList, TriangleList};
+        let constants: &[(&str, f64)] = if shadows {
+            &[("SHADOWS", 1.0)]
+        } else {
+            &[("SHADOWS", 0.0)]
+        };
+        let body = |label, fragment_entry, depth_write, blend| PipelineSpec {
+            label,
+            vertex_entry: "vs_body",
+            fragment_entry,
+            buffers: &BODY_BUFFERS,
+            topology: TriangleList,
+            cull_mode: Some(wgpu::Face::Back),
+            depth_write,
+            depth_compare: Less,
+            blend,
+            constants,
+        };
+        let ground = |label, topology, depth_write, depth_compare| PipelineSpec {
+            label,
+            vertex_entry: "vs_ground",
+            fragment_entry: "fs_ground",
+            buffers: &LINE_BUFFERS,
+            topology,
+            cull_mode: None,
+            depth_write,
+            depth_compare,
+            blend: None,
+            constants,
+        };
+        let ghost_blend = Some(wgpu::BlendState::ALPHA_BLENDING);
+        SurfacePipelines {
+            bodies: base.build(body("bodies", "fs_body", true, None)),
+            ghosts: base.build(body("ghost bodies", "fs_ghost", false, ghost_blend)),
+            ground: base.build(ground("ground", TriangleList, false, Always)),
+            grid: base.build(ground("grid", LineList, true, LessEqual)),
+        }
+    }
 }
 
 /// What differs between the scene's pipelines.
@@ -95,6 +162,9 @@ struct PipelineSpec<'a> {
     cull_mode: Option<wgpu::Face>,
     depth_write: bool,
     depth_compare: wgpu::CompareFunction,
+    blend: Option<wgpu::BlendState>,
+    /// Values of the shader's pipeline-overridable constants.
+    constants: &'a [(&'a str, f64)],
 }
 
 /// What all the scene's pipelines share.
@@ -115,7 +185,10 @@ impl PipelineBase<'_> {
                 vertex: wgpu::VertexState {
                     module: self.module,
                     entry_point: Some(spec.vertex_entry),
-                    compilation_options: Default::default(),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants: spec.constants,
+                        ..Default::default()
+                    },
                     buffers: spec.buffers,
                 },
                 primitive: wgpu::PrimitiveState {
@@ -138,10 +211,13 @@ impl PipelineBase<'_> {
                 fragment: Some(wgpu::FragmentState {
                     module: self.module,
                     entry_point: Some(spec.fragment_entry),
-                    compilation_options: Default::default(),
+                    compilation_options: wgpu::PipelineCompilationOptions {
+                        constants: spec.constants,
+                        ..Default::default()
+                    },
                     targets: &[Some(wgpu::ColorTargetState {
                         format: self.color_format,
-                        blend: None,
+                        blend: spec.blend,
                         write_mask: wgpu::ColorWrites::ALL,
                     })],
                 }),
@@ -163,9 +239,10 @@ impl ScenePipelines {
             source: wgpu::ShaderSource::Wgsl(SHADER.into()),
         });
         let (layout, globals, globals_bind_group) = globals_binding(device);
+        let shadow_layout = shadow::bind_group_layout(device);
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("scene"),
-            bind_group_layouts: &[Some(&layout)],
+            bind_group_layouts: &[Some(&layout), Some(&shadow_layout)],
             immediate_size: 0,
         });
         let base = PipelineBase {
@@ -175,39 +252,28 @@ impl ScenePipelines {
             color_format,
             sample_count,
         };
-        use wgpu::CompareFunction::{Always, Less, LessEqual};
-        use wgpu::PrimitiveTopology::{LineList, TriangleList};
-        let line_spec = |label, topology, depth_write, depth_compare| PipelineSpec {
+        let line = |label, depth_write, depth_compare| PipelineSpec {
             label,
             vertex_entry: "vs_line",
             fragment_entry: "fs_line",
             buffers: &LINE_BUFFERS,
-            topology,
+            topology: wgpu::PrimitiveTopology::LineList,
             cull_mode: None,
             depth_write,
             depth_compare,
+            blend: None,
+            constants: &[],
         };
-        let bodies = base.build(PipelineSpec {
-            label: "bodies",
-            vertex_entry: "vs_body",
-            fragment_entry: "fs_body",
-            buffers: &BODY_BUFFERS,
-            topology: TriangleList,
-            cull_mode: Some(wgpu::Face::Back),
-            depth_write: true,
-            depth_compare: Less,
-        });
-        let lines = base.build(line_spec("lines", LineList, true, LessEqual));
-        let overlay = base.build(line_spec("overlay lines", LineList, false, Always));
-        let ground = base.build(line_spec("ground", TriangleList, false, Always));
         ScenePipelines {
+            shadow: shadow::pipeline(device, &module, &layout),
+            shadowed: SurfacePipelines::new(&base, true),
+            unshadowed: SurfacePipelines::new(&base, false),
+            lines: base.build(line("lines", true, wgpu::CompareFunction::LessEqual)),
+            overlay: base.build(line("overlay lines", false, wgpu::CompareFunction::Always)),
             module,
             globals,
             globals_bind_group,
-            bodies,
-            lines,
-            ground,
-            overlay,
+            shadow_layout,
         }
     }
 }

@@ -8,6 +8,7 @@
 //! with the view as viewport instead.
 
 use super::camera::OrbitCamera;
+use super::compare;
 use super::gpu::Offscreen;
 use super::palette;
 use super::renderer::DrawOptions;
@@ -52,11 +53,11 @@ struct Target<'a> {
 /// Upload phase: the scene's camera, poses and lines, then egui's output.
 pub fn prepare(
     gfx: &mut Gfx,
-    world: &World,
+    worlds: &[&World],
     view: SceneView<'_>,
     ui: egui::FullOutput,
 ) -> PreparedFrame {
-    let scene_origin = prepare_scene(gfx, world, view);
+    let scene_origin = prepare_scene(gfx, worlds, view);
     gfx.egui_state
         .handle_platform_output(&gfx.window, ui.platform_output);
     let jobs = gfx.egui_ctx.tessellate(ui.shapes, ui.pixels_per_point);
@@ -85,16 +86,22 @@ pub fn prepare(
     }
 }
 
-/// Sizes the scene's targets for the view and uploads what the renderer draws; returns where
-/// the scene texture goes in the window (see [`prepare_scene_target`]).
-pub fn prepare_scene(gfx: &mut Gfx, world: &World, view: SceneView<'_>) -> Option<wgpu::Origin3d> {
+/// Sizes the scene's targets for the view and uploads what the renderer draws (`worlds`: the
+/// world and those compared with it); returns where the scene texture goes in the window (see
+/// [`prepare_scene_target`]).
+pub fn prepare_scene(
+    gfx: &mut Gfx,
+    worlds: &[&World],
+    view: SceneView<'_>,
+) -> Option<wgpu::Origin3d> {
     let origin = prepare_scene_target(gfx, view.rect);
     let (w, h) = view.rect.size();
+    let aspect = compare::pane_aspect(w, h, worlds.len(), view.draw.layout);
     gfx.renderer.prepare(
         &gfx.gpu.device,
         &gfx.gpu.queue,
-        world,
-        &view.camera.matrices(w / h),
+        worlds,
+        &view.camera.matrices(aspect),
         view.draw,
     );
     origin
@@ -123,7 +130,7 @@ fn prepare_scene_target(gfx: &mut Gfx, view_rect: ViewRect) -> Option<wgpu::Orig
         .as_ref()
         .is_none_or(|s| s.width != w || s.height != h)
     {
-        gfx.scene = Some(Offscreen::new(device, w, h, gfx.renderer.color_format));
+        gfx.scene = Some(Offscreen::new(device, w, h, gfx.config.format));
     }
     gfx.renderer.resize(device, w, h);
     Some(wgpu::Origin3d { x, y, z: 0 })
@@ -221,7 +228,7 @@ fn draw_targets(
     if let Some((_, scene)) = scene
         && !targets.is_empty()
     {
-        gfx.renderer.draw(encoder, &scene.view, None);
+        gfx.renderer.draw(encoder, &scene.srgb_view, None);
     }
     let panel_fill = gfx.egui_ctx.global_style().visuals.panel_fill;
     for target in targets {
@@ -263,24 +270,7 @@ fn copy_scene(
 
 /// egui's pass over what is already in `view`.
 fn paint_ui(gfx: &Gfx, encoder: &mut wgpu::CommandEncoder, view: &wgpu::TextureView, ui: &UiPaint) {
-    let mut pass = encoder
-        .begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("egui"),
-            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                view,
-                depth_slice: None,
-                resolve_target: None,
-                ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Load,
-                    store: wgpu::StoreOp::Store,
-                },
-            })],
-            depth_stencil_attachment: None,
-            timestamp_writes: None,
-            occlusion_query_set: None,
-            multiview_mask: None,
-        })
-        .forget_lifetime();
+    let mut pass = super::gpu::overlay_pass(encoder, view, "egui").forget_lifetime();
     gfx.egui_renderer.render(&mut pass, &ui.jobs, &ui.screen);
 }
 

@@ -18,19 +18,21 @@ impl Renderer {
     pub fn gpu_body_points(&self, gpu: &Gpu) -> anyhow::Result<BodyPoints> {
         anyhow::ensure!(self.storage, "this adapter has no compute shaders");
         let pass = BodyPointsPass::new(&gpu.device, &self.pipelines.module);
-        let mut out: BodyPoints = vec![Vec::new(); self.order.len()];
-        for (mesh, range) in self.meshes.iter().zip(&self.shape_ranges) {
+        let scene = &self.scene;
+        let instances = &self.layers[0].instance_buffer.buffer;
+        let mut out: BodyPoints = vec![Vec::new(); scene.order.len()];
+        for (mesh, range) in scene.meshes.iter().zip(&scene.shape_ranges) {
             if range.is_empty() || mesh.vertex_count == 0 {
                 continue;
             }
-            let values = pass.run(gpu, mesh, &self.instance_buffer.buffer, range)?;
+            let values = pass.run(gpu, mesh, instances, range)?;
             let rest_count = mesh
                 .source_vertex
                 .iter()
                 .copied()
                 .max()
                 .map_or(0, |m| m as usize + 1);
-            let bodies = &self.order[range.start as usize..range.end as usize];
+            let bodies = &scene.order[range.start as usize..range.end as usize];
             for (k, &body) in bodies.iter().enumerate() {
                 let mut points = vec![None; rest_count];
                 for (v, &source) in mesh.source_vertex.iter().enumerate() {

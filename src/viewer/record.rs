@@ -2,10 +2,12 @@
 //! encoded on a background thread; and the offscreen recording loop of `tumble record`.
 
 use super::camera::OrbitCamera;
+use super::compare;
 use super::gpu::Image;
+use super::labels::Label;
 use super::renderer::{DrawOptions, OffscreenRenderer};
-use crate::World;
 pub use crate::io::{partial_path, write_file_atomically};
+use crate::{Settings, StepStats, World};
 use anyhow::{Context, bail};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -398,18 +400,23 @@ pub struct RecordOptions {
     pub fps: f64,
     pub width: u32,
     pub height: u32,
-    /// `YAW,PITCH[,DISTANCE[,X,Y,Z]]` over the framed scene.
+    /// `YAW,PITCH[,DISTANCE[,X,Y,Z]]` over the framed scene, or `orbit`.
     pub camera: Option<String>,
     pub draw: DrawOptions,
+    /// Settings of a second world of the scene stepped alongside and drawn with it (panes side
+    /// by side or a ghost, as `draw.layout` says), each labelled.
+    pub compare: Option<Settings>,
 }
 
 impl RecordOptions {
     /// Rejects settings that cannot make a recording, with simulation time step `dt`.
     fn check(&self, dt: f64) -> anyhow::Result<()> {
-        anyhow::ensure!(
-            dt.is_finite() && dt > 0.0,
-            "the time step must be positive to record, got {dt}"
-        );
+        for dt in std::iter::once(dt).chain(self.compare.as_ref().map(|s| s.time_step)) {
+            anyhow::ensure!(
+                dt.is_finite() && dt > 0.0,
+                "the time step must be positive to record, got {dt}"
+            );
+        }
         anyhow::ensure!(
             self.seconds.is_finite() && self.seconds >= 0.0,
             "--seconds must be a non-negative number"
@@ -420,15 +427,36 @@ impl RecordOptions {
         );
         Ok(())
     }
+
+    /// The camera over `world`: framed for one pane, then as `camera` says.
+    fn camera(&self, world: &World, panes_of: usize) -> anyhow::Result<(OrbitCamera, bool)> {
+        let mut camera = OrbitCamera::default();
+        let aspect = compare::pane_aspect(
+            self.width as f64,
+            self.height as f64,
+            panes_of,
+            self.draw.layout,
+        );
+        camera.frame(world, aspect);
+        match self.camera.as_deref().map(str::trim) {
+            Some("orbit") => Ok((camera, true)),
+            Some(spec) => {
+                camera.apply_spec(spec).map_err(anyhow::Error::msg)?;
+                Ok((camera, false))
+            }
+            None => Ok((camera, false)),
+        }
+    }
 }
 
 #[derive(Debug, Clone)]
 pub struct RecordReport {
     pub frames: u64,
+    /// Steps of the first world.
     pub steps: u64,
     pub sim_time: f64,
     pub wall_s: f64,
-    /// Seconds stepping the simulation.
+    /// Seconds stepping the simulation (every world).
     pub simulate_s: f64,
     /// Seconds rendering and reading frames back.
     pub render_s: f64,
@@ -441,26 +469,62 @@ pub struct RecordReport {
     pub adapter: String,
 }
 
+/// The worlds being recorded, each with its last step's statistics.
+struct Recorded {
+    worlds: Vec<(World, StepStats)>,
+    layout: compare::Layout,
+}
+
+impl Recorded {
+    /// Steps every world up to simulated time `time` (within half its step); returns the first
+    /// world's steps.
+    fn step_to(&mut self, time: f64) -> u64 {
+        let mut first_steps = 0;
+        for (k, (world, last)) in self.worlds.iter_mut().enumerate() {
+            let dt = world.settings.time_step;
+            while world.time < time - 0.5 * dt {
+                *last = world.step();
+                first_steps += (k == 0) as u64;
+            }
+        }
+        first_steps
+    }
+
+    fn worlds(&self) -> Vec<&World> {
+        self.worlds.iter().map(|(w, _)| w).collect()
+    }
+
+    /// Labels naming the worlds, when there is more than one.
+    fn labels(&self, width: u32, height: u32) -> Vec<Label> {
+        if self.worlds.len() < 2 {
+            return Vec::new();
+        }
+        let worlds: Vec<(&World, &StepStats)> = self.worlds.iter().map(|(w, s)| (w, s)).collect();
+        Label::for_panes(
+            [0.0, 0.0, width as f32, height as f32],
+            &worlds,
+            self.layout,
+        )
+    }
+}
+
 /// Renders `options.seconds` of simulation at a fixed rate (frame k shows time k / fps,
-/// whatever the rendering speed) into `options.output`. `progress(done, total)` is called after
-/// each frame; when `interrupted()` turns true the frames so far are finished into a valid file.
+/// whatever the rendering speed) into `options.output`; with `options.compare`, a second world
+/// of the scene beside (or over) it. `progress(done, total)` is called after each frame; when
+/// `interrupted()` turns true the frames so far are finished into a valid file.
 pub fn record(
-    world: &mut World,
+    world: World,
     options: &RecordOptions,
     progress: &mut dyn FnMut(u64, u64),
     interrupted: &dyn Fn() -> bool,
 ) -> anyhow::Result<RecordReport> {
     let start = Instant::now();
-    let dt = world.settings.time_step;
-    options.check(dt)?;
+    options.check(world.settings.time_step)?;
     let frames = ((options.seconds * options.fps).round() as u64).max(1);
-    let mut camera = OrbitCamera::default();
-    camera.frame(world, options.width as f64 / options.height as f64);
-    if let Some(spec) = &options.camera {
-        camera.apply_spec(spec).map_err(anyhow::Error::msg)?;
-    }
+    let panes = 1 + options.compare.is_some() as usize;
+    let (mut camera, orbit) = options.camera(&world, panes)?;
     FrameWriter::check(&options.output, options.width, options.height, options.fps)?;
-    let mut offscreen = OffscreenRenderer::new(world, options.width, options.height)?;
+    let mut offscreen = OffscreenRenderer::new(&world, options.width, options.height)?;
     let mut writer =
         FrameWriter::create(&options.output, options.width, options.height, options.fps)?;
     let mut report = RecordReport {
@@ -476,20 +540,26 @@ pub fn record(
         adapter: offscreen.gpu.description(),
     };
     let start_time = world.time;
+    let yaw = camera.yaw;
+    let mut recorded = Recorded {
+        worlds: compared_worlds(world, options.compare.as_ref()),
+        layout: options.draw.layout,
+    };
     for k in 0..frames {
         if interrupted() {
             report.interrupted = true;
             break;
         }
         let t = Instant::now();
-        let frame_time = start_time + k as f64 / options.fps;
-        while world.time < frame_time - 0.5 * dt {
-            world.step();
-            report.steps += 1;
-        }
+        report.steps += recorded.step_to(start_time + k as f64 / options.fps);
         report.simulate_s += t.elapsed().as_secs_f64();
+        if orbit {
+            // One turn over the recording: the loop of a GIF closes.
+            camera.yaw = yaw + std::f64::consts::TAU * k as f64 / frames as f64;
+        }
         let t = Instant::now();
-        let image = offscreen.render(world, &camera, &options.draw)?;
+        let labels = recorded.labels(options.width, options.height);
+        let image = offscreen.render_worlds(&recorded.worlds(), &camera, &options.draw, &labels)?;
         report.render_s += t.elapsed().as_secs_f64();
         let t = Instant::now();
         writer.push(image)?;
@@ -500,9 +570,21 @@ pub fn record(
     let t = Instant::now();
     report.encode_s = writer.finish()?.1;
     report.encode_wait_s += t.elapsed().as_secs_f64();
-    report.sim_time = world.time - start_time;
+    report.sim_time = recorded.worlds[0].0.time - start_time;
     report.wall_s = start.elapsed().as_secs_f64();
     Ok(report)
+}
+
+/// `world`, and a copy of it with the `compare` settings when given.
+fn compared_worlds(world: World, compare: Option<&Settings>) -> Vec<(World, StepStats)> {
+    let second = compare.map(|settings| {
+        let mut w = world.clone();
+        w.settings = settings.clone();
+        (w, StepStats::default())
+    });
+    std::iter::once((world, StepStats::default()))
+        .chain(second)
+        .collect()
 }
 
 #[cfg(test)]

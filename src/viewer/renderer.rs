@@ -1,27 +1,33 @@
 //! The wgpu scene renderer shared by the window, the recorder and the tests.
 //!
-//! Static data is uploaded once per scene: one flat-shaded vertex buffer per distinct shape
-//! (vertices duplicated per face, carrying the face normal), the ground plane and grid. Each frame
-//! uploads only the bodies' poses as instance data (quaternion, centre of mass, colour) plus a few
-//! lines (constraints, contacts). The vertex shader computes `R(q) v + COM` in f32, the core's
-//! formula, and each shape is one instanced draw.
+//! Static data is uploaded once per scene ([`SceneData`]): one flat-shaded vertex buffer per
+//! distinct shape (vertices duplicated per face, carrying the face normal), the ground plane and
+//! grid. Each frame uploads, for each world shown (one, or two compared: a `layer` each), only
+//! the bodies' poses as instance data (quaternion, centre of mass, colour) plus a few lines
+//! (constraints, contacts, the grab). The vertex shader computes `R(q) v + COM` in f32, the
+//! core's formula, and each shape is one instanced draw. With shadows, each world's bodies are
+//! first drawn into its shadow map from the key light (`shadow.rs`).
 //!
 //! Pipelines live in `pipelines.rs`, line geometry in `overlay.rs`, depth and MSAA attachments
 //! in `targets.rs`; the test-only GPU readback extends [`Renderer`] from `readback.rs`.
 
 use super::camera::{CameraMatrices, OrbitCamera, scene_bounds};
-use super::gpu::{Gpu, Image, NoGpu, Offscreen, StreamingBuffer, buffer_init};
-use super::overlay::{self, with_alpha};
+use super::compare::{self, Layout};
+use super::gpu::{Gpu, Image, NoGpu, Offscreen, buffer_init};
+use super::labels::{Label, LabelPainter};
+use super::layer::{Layer, vertex_usage};
+use super::overlay;
 use super::palette;
-use super::pipelines::{Globals, LineVertex, ScenePipelines};
+use super::pipelines::{Globals, ScenePipelines};
 pub use super::pipelines::{InstanceData, MeshVertex};
+use super::shadow::{self, SHADOW_SIZE};
 pub use super::targets::DEPTH_FORMAT;
 use super::targets::SceneAttachments;
 use crate::{Shape, World};
-use glam::Vec3;
+use glam::DVec3;
 use std::ops::Range;
 
-/// What to draw besides the bodies.
+/// What to draw besides the bodies, and how.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DrawOptions {
     /// Ground plane and grid at y = 0.
@@ -32,8 +38,12 @@ pub struct DrawOptions {
     pub contacts: bool,
     /// Highlighted body.
     pub selected: Option<usize>,
-    /// Unlit: every body in its exact palette colour (for tests).
+    /// Unlit: every body in its exact palette colour, no shadows (for tests).
     pub flat: bool,
+    /// Shadows from the key light on the ground and the bodies.
+    pub shadows: bool,
+    /// How compared worlds share the view.
+    pub layout: Layout,
 }
 
 impl Default for DrawOptions {
@@ -44,6 +54,8 @@ impl Default for DrawOptions {
             contacts: false,
             selected: None,
             flat: false,
+            shadows: true,
+            layout: Layout::SideBySide,
         }
     }
 }
@@ -84,43 +96,101 @@ impl ShapeMesh {
     }
 }
 
+/// What a scene uploads once: its shapes' meshes, the draw order, colours, constraint groups
+/// and the ground.
+pub(super) struct SceneData {
+    pub(super) meshes: Vec<ShapeMesh>,
+    /// Body indices grouped by shape; `shape_ranges[s]` is shape `s`'s slice of it.
+    pub(super) order: Vec<u32>,
+    pub(super) shape_ranges: Vec<Range<u32>>,
+    pub(super) base_colors: Vec<[f32; 3]>,
+    /// Constraint indices drawn as one segment (a file record's lower and upper bound).
+    pub(super) constraint_groups: Vec<Vec<usize>>,
+    ground_buffer: Option<wgpu::Buffer>,
+    ground_plane: Range<u32>,
+    ground_grid: Range<u32>,
+    /// Half the ground's side: the shadow map covers it.
+    ground_extent: f64,
+    /// Size of the scene, for the length of contact normals and markers.
+    pub(super) scale: f64,
+}
+
+impl SceneData {
+    fn empty() -> SceneData {
+        SceneData {
+            meshes: Vec::new(),
+            order: Vec::new(),
+            shape_ranges: Vec::new(),
+            base_colors: Vec::new(),
+            constraint_groups: Vec::new(),
+            ground_buffer: None,
+            ground_plane: 0..0,
+            ground_grid: 0..0,
+            ground_extent: 1.0,
+            scale: 1.0,
+        }
+    }
+
+    fn new(device: &wgpu::Device, world: &World, usage: wgpu::BufferUsages) -> SceneData {
+        let (order, shape_ranges) = group_by_shape(world);
+        let (lo, hi) = scene_bounds(world);
+        let ground = overlay::ground(lo, hi);
+        SceneData {
+            meshes: world
+                .shapes
+                .iter()
+                .map(|shape| ShapeMesh::new(device, shape, usage))
+                .collect(),
+            order,
+            shape_ranges,
+            base_colors: world
+                .bodies
+                .iter()
+                .enumerate()
+                .map(|(i, b)| palette::linear(palette::body_srgb(i, b.fixed)))
+                .collect(),
+            constraint_groups: overlay::constraint_groups(world),
+            ground_buffer: Some(buffer_init(
+                device,
+                "ground",
+                bytemuck::cast_slice(&ground.vertices),
+                wgpu::BufferUsages::VERTEX,
+            )),
+            ground_plane: ground.plane,
+            ground_grid: ground.grid,
+            ground_extent: ground.extent,
+            scale: (hi - lo).length().max(1e-3),
+        }
+    }
+
+    /// The box the shadow map must cover: the ground and every body of `worlds`.
+    fn shadow_bounds(&self, worlds: &[&World]) -> (DVec3, DVec3) {
+        let e = self.ground_extent;
+        let (mut lo, mut hi) = (DVec3::new(-e, 0.0, -e), DVec3::new(e, 0.0, e));
+        for world in worlds {
+            let (a, b) = scene_bounds(world);
+            lo = lo.min(a);
+            hi = hi.max(b);
+        }
+        (lo, hi)
+    }
+}
+
 pub struct Renderer {
     pub color_format: wgpu::TextureFormat,
     pub sample_count: u32,
     /// Vertex buffers also bind as storage, for the GPU readback's compute pass.
     pub(super) storage: bool,
     pub(super) pipelines: ScenePipelines,
-    pub(super) meshes: Vec<ShapeMesh>,
-    /// Body indices grouped by shape; `shape_ranges[s]` is shape `s`'s slice of it.
-    pub(super) order: Vec<u32>,
-    pub(super) shape_ranges: Vec<Range<u32>>,
-    base_colors: Vec<[f32; 3]>,
-    /// Constraint indices drawn as one segment (a file record's lower and upper bound).
-    constraint_groups: Vec<Vec<usize>>,
-    instances: Vec<InstanceData>,
-    pub(super) instance_buffer: StreamingBuffer,
-    ground_buffer: Option<wgpu::Buffer>,
-    ground_plane: Range<u32>,
-    ground_grid: Range<u32>,
-    lines: Vec<LineVertex>,
-    line_buffer: StreamingBuffer,
-    /// Lines from this index on are drawn without depth test.
-    overlay_start: u32,
+    pub(super) scene: SceneData,
+    /// One per world shown; the first `shown` are drawn this frame.
+    pub(super) layers: Vec<Layer>,
+    shown: usize,
+    layout: Layout,
     draw_grid: bool,
-    /// Size of the scene, for the length of contact normals.
-    scene_scale: f64,
+    /// Shadow maps are drawn and sampled this frame.
+    shadows: bool,
     attachments: Option<SceneAttachments>,
-}
-
-/// Usage of the mesh and instance buffers: storage too where the readback can bind them.
-fn vertex_usage(storage: bool) -> wgpu::BufferUsages {
-    wgpu::BufferUsages::VERTEX
-        | wgpu::BufferUsages::COPY_DST
-        | if storage {
-            wgpu::BufferUsages::STORAGE
-        } else {
-            wgpu::BufferUsages::empty()
-        }
 }
 
 /// Body indices sorted by shape, and each shape's range in that order: one instanced draw per
@@ -148,63 +218,29 @@ impl Renderer {
         let device = &gpu.device;
         let sample_count = gpu.sample_count(color_format);
         let storage = gpu.has_compute();
+        let pipelines = ScenePipelines::new(device, color_format, sample_count);
+        let first = Layer::new(device, &pipelines, storage);
         Renderer {
             color_format,
             sample_count,
             storage,
-            pipelines: ScenePipelines::new(device, color_format, sample_count),
-            meshes: Vec::new(),
-            order: Vec::new(),
-            shape_ranges: Vec::new(),
-            base_colors: Vec::new(),
-            constraint_groups: Vec::new(),
-            instances: Vec::new(),
-            instance_buffer: StreamingBuffer::new(device, "instances", vertex_usage(storage)),
-            ground_buffer: None,
-            ground_plane: 0..0,
-            ground_grid: 0..0,
-            lines: Vec::new(),
-            line_buffer: StreamingBuffer::new(
-                device,
-                "lines",
-                wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
-            ),
-            overlay_start: 0,
+            pipelines,
+            scene: SceneData::empty(),
+            layers: vec![first],
+            shown: 1,
+            layout: Layout::SideBySide,
             draw_grid: true,
-            scene_scale: 1.0,
+            shadows: false,
             attachments: None,
         }
     }
 
     /// Uploads the static data of a (new) scene: shape meshes, colours, ground grid.
     pub fn set_world(&mut self, device: &wgpu::Device, world: &World) {
-        let usage = vertex_usage(self.storage);
-        self.meshes = world
-            .shapes
-            .iter()
-            .map(|shape| ShapeMesh::new(device, shape, usage))
-            .collect();
-        (self.order, self.shape_ranges) = group_by_shape(world);
-        self.base_colors = world
-            .bodies
-            .iter()
-            .enumerate()
-            .map(|(i, b)| palette::linear(palette::body_srgb(i, b.fixed)))
-            .collect();
-        self.constraint_groups = overlay::constraint_groups(world);
-
-        let (lo, hi) = scene_bounds(world);
-        self.scene_scale = (hi - lo).length().max(1e-3);
-        let ground = overlay::ground(lo, hi);
-        self.ground_plane = ground.plane;
-        self.ground_grid = ground.grid;
-        self.ground_buffer = Some(buffer_init(
-            device,
-            "ground",
-            bytemuck::cast_slice(&ground.vertices),
-            wgpu::BufferUsages::VERTEX,
-        ));
-        self.instance_buffer.reallocate_on_next_write();
+        self.scene = SceneData::new(device, world, vertex_usage(self.storage));
+        for layer in &mut self.layers {
+            layer.forget_sizes();
+        }
     }
 
     /// (Re)creates the depth and MSAA targets for a `width` x `height` colour target.
@@ -226,18 +262,47 @@ impl Renderer {
         ));
     }
 
-    /// Uploads this frame's camera, body poses and lines.
+    /// Uploads this frame's camera, light, and each world's body poses and lines. `worlds` are
+    /// the world shown and, when comparing, the others (of the same scene); `camera` is built for
+    /// the aspect of one pane ([`compare::pane_aspect`]).
     pub fn prepare(
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
-        world: &World,
+        worlds: &[&World],
         camera: &CameraMatrices,
         options: &DrawOptions,
     ) {
-        let light = Vec3::new(0.45, 0.8, 0.35).normalize();
-        let globals = Globals {
+        self.shadows = options.shadows && !options.flat;
+        let globals = self.globals(worlds, camera, options);
+        queue.write_buffer(&self.pipelines.globals, 0, bytemuck::bytes_of(&globals));
+        while self.layers.len() < worlds.len() {
+            let layer = Layer::new(device, &self.pipelines, self.storage);
+            self.layers.push(layer);
+        }
+        let eye = camera.eye.as_dvec3();
+        for (layer, world) in self.layers.iter_mut().zip(worlds) {
+            layer.prepare(device, queue, world, &self.scene, eye, options);
+        }
+        self.shown = worlds.len().max(1);
+        self.layout = options.layout;
+        self.draw_grid = options.grid;
+    }
+
+    /// The uniform block: camera, key light, and the shadow map's projection fitted to the
+    /// ground and the bodies of `worlds`.
+    fn globals(
+        &self,
+        worlds: &[&World],
+        camera: &CameraMatrices,
+        options: &DrawOptions,
+    ) -> Globals {
+        let light = shadow::light_direction().as_vec3();
+        let (lo, hi) = self.scene.shadow_bounds(worlds);
+        let (light_view_proj, texel) = shadow::light_view_proj(lo, hi);
+        Globals {
             view_proj: camera.view_proj.to_cols_array_2d(),
+            light_view_proj: light_view_proj.as_mat4().to_cols_array_2d(),
             light: [
                 light.x,
                 light.y,
@@ -245,104 +310,78 @@ impl Renderer {
                 if options.flat { 1.0 } else { 0.0 },
             ],
             eye: [camera.eye.x, camera.eye.y, camera.eye.z, 1.0],
-        };
-        queue.write_buffer(&self.pipelines.globals, 0, bytemuck::bytes_of(&globals));
-        self.build_instances(world, options.selected);
-        self.instance_buffer.write(device, queue, &self.instances);
-        self.build_lines(world, camera, options);
-        self.line_buffer.write(device, queue, &self.lines);
-        self.draw_grid = options.grid;
-    }
-
-    /// One instance per body in draw order: pose in f32, palette colour (or the quarantine
-    /// colour), and the highlight flag of the selected body.
-    fn build_instances(&mut self, world: &World, selected: Option<usize>) {
-        self.instances.clear();
-        for &index in &self.order {
-            let body = &world.bodies[index as usize];
-            let q = body.orientation.as_quat();
-            let p = body.position.as_vec3();
-            let color = if body.quarantined {
-                palette::linear(palette::QUARANTINED_SRGB)
-            } else {
-                self.base_colors[index as usize]
-            };
-            let highlight = if selected == Some(index as usize) {
-                1.0
-            } else {
-                0.0
-            };
-            self.instances.push(InstanceData {
-                rotation: q.to_array(),
-                com: [p.x, p.y, p.z, 0.0],
-                color: with_alpha(color, highlight),
-            });
+            shadow: [
+                if self.shadows { 1.0 } else { 0.0 },
+                1.0 / SHADOW_SIZE as f32,
+                (1.5 * texel) as f32,
+                0.0,
+            ],
         }
     }
 
-    /// This frame's lines: the depth-tested ones (constraints, selection outline), then from
-    /// `overlay_start` those drawn over everything (contact markers).
-    fn build_lines(&mut self, world: &World, camera: &CameraMatrices, options: &DrawOptions) {
-        self.lines.clear();
-        if options.constraints {
-            overlay::constraint_segments(&mut self.lines, world, &self.constraint_groups);
-        }
-        if let Some(index) = options.selected.filter(|&i| i < world.bodies.len()) {
-            overlay::selection_outline(&mut self.lines, world, index, camera.eye.as_dvec3());
-        }
-        self.overlay_start = self.lines.len() as u32;
-        if options.contacts {
-            overlay::contact_markers(&mut self.lines, world, self.scene_scale);
-        }
-    }
-
-    /// Clears `target` and draws the scene into it, within `viewport` (x, y, width, height in
-    /// pixels) when given. [`Self::resize`] must have been called with `target`'s size.
+    /// Draws the shadow maps (when on), then clears `target` and draws the scene into it, within
+    /// `viewport` (x, y, width, height in pixels) when given, split into panes when comparing.
+    /// [`Self::resize`] must have been called with `target`'s size.
     pub fn draw(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         target: &wgpu::TextureView,
         viewport: Option<[f32; 4]>,
     ) {
+        let panes = self.panes(viewport);
+        if self.shadows {
+            for pane in &panes {
+                self.layers[pane.lanes[0]].draw_shadow(encoder, &self.pipelines, &self.scene);
+            }
+        }
         let mut pass = self.begin_scene_pass(encoder, target);
-        if let Some([x, y, w, h]) = viewport {
+        for pane in &panes {
+            let [x, y, w, h] = pane.rect;
             if w < 1.0 || h < 1.0 {
-                return;
+                continue;
             }
             pass.set_viewport(x, y, w, h, 0.0, 1.0);
+            self.draw_pane(&mut pass, &pane.lanes);
         }
-        pass.set_bind_group(0, &self.pipelines.globals_bind_group, &[]);
+    }
+
+    /// The panes of `viewport` (the whole target when None) for the worlds shown.
+    fn panes(&self, viewport: Option<[f32; 4]>) -> Vec<compare::Pane> {
+        let rect = viewport.unwrap_or_else(|| {
+            let a = self.attachments.as_ref();
+            let (w, h) = a.map_or((1, 1), |a| (a.width, a.height));
+            [0.0, 0.0, w as f32, h as f32]
+        });
+        compare::panes(rect, self.shown, self.layout)
+    }
+
+    /// One pane: the ground under the first world's shadows, its bodies, the others as ghosts,
+    /// and its lines.
+    fn draw_pane(&self, pass: &mut wgpu::RenderPass<'_>, lanes: &[usize]) {
+        let main = &self.layers[lanes[0]];
+        let pipelines = &self.pipelines;
+        let surfaces = if self.shadows {
+            &pipelines.shadowed
+        } else {
+            &pipelines.unshadowed
+        };
+        pass.set_bind_group(0, &pipelines.globals_bind_group, &[]);
+        pass.set_bind_group(1, &main.shadow.bind_group, &[]);
         if self.draw_grid
-            && let Some(ground) = &self.ground_buffer
+            && let Some(ground) = &self.scene.ground_buffer
         {
             pass.set_vertex_buffer(0, ground.slice(..));
-            pass.set_pipeline(&self.pipelines.ground);
-            pass.draw(self.ground_plane.clone(), 0..1);
-            pass.set_pipeline(&self.pipelines.lines);
-            pass.draw(self.ground_grid.clone(), 0..1);
+            pass.set_pipeline(&surfaces.ground);
+            pass.draw(self.scene.ground_plane.clone(), 0..1);
+            pass.set_pipeline(&surfaces.grid);
+            pass.draw(self.scene.ground_grid.clone(), 0..1);
         }
-        if !self.instances.is_empty() {
-            pass.set_pipeline(&self.pipelines.bodies);
-            pass.set_vertex_buffer(1, self.instance_buffer.buffer.slice(..));
-            for (mesh, range) in self.meshes.iter().zip(&self.shape_ranges) {
-                if range.is_empty() || mesh.vertex_count == 0 {
-                    continue;
-                }
-                pass.set_vertex_buffer(0, mesh.buffer.slice(..));
-                pass.draw(0..mesh.vertex_count, range.clone());
-            }
-        }
-        let line_count = self.lines.len() as u32;
-        if line_count > 0 {
-            pass.set_vertex_buffer(0, self.line_buffer.buffer.slice(..));
-            if self.overlay_start > 0 {
-                pass.set_pipeline(&self.pipelines.lines);
-                pass.draw(0..self.overlay_start, 0..1);
-            }
-            if line_count > self.overlay_start {
-                pass.set_pipeline(&self.pipelines.overlay);
-                pass.draw(self.overlay_start..line_count, 0..1);
-            }
+        pass.set_pipeline(&surfaces.bodies);
+        main.draw_bodies(pass, &self.scene);
+        main.draw_lines(pass, pipelines);
+        for &ghost in &lanes[1..] {
+            pass.set_pipeline(&surfaces.ghosts);
+            self.layers[ghost].draw_bodies(pass, &self.scene);
         }
     }
 
@@ -393,21 +432,30 @@ impl Renderer {
         })
     }
 
-    /// Number of draw calls [`Self::draw`] issues for the bodies (one per shape in use).
+    /// Number of draw calls [`Self::draw`] issues for the bodies of one world (one per shape
+    /// in use).
     pub fn body_draw_calls(&self) -> usize {
-        self.meshes
+        self.scene
+            .meshes
             .iter()
-            .zip(&self.shape_ranges)
+            .zip(&self.scene.shape_ranges)
             .filter(|(m, r)| !r.is_empty() && m.vertex_count > 0)
             .count()
     }
 
-    /// The instance data of the last [`Self::prepare`], in body order.
-    pub fn instance_of(&self, body: usize) -> Option<InstanceData> {
-        self.order
+    /// The instance data of the last [`Self::prepare`] of world `layer`, in body order.
+    pub fn instance_in(&self, layer: usize, body: usize) -> Option<InstanceData> {
+        let instances = &self.layers.get(layer)?.instances;
+        self.scene
+            .order
             .iter()
             .position(|&b| b as usize == body)
-            .map(|k| self.instances[k])
+            .and_then(|k| instances.get(k).copied())
+    }
+
+    /// The instance data of the last [`Self::prepare`] of the first world, in body order.
+    pub fn instance_of(&self, body: usize) -> Option<InstanceData> {
+        self.instance_in(0, body)
     }
 }
 
@@ -416,14 +464,17 @@ impl Renderer {
 pub struct OffscreenRenderer {
     pub gpu: Gpu,
     pub renderer: Renderer,
+    /// `Rgba8Unorm`, drawn into through its sRGB view (the bytes of an sRGB target), so that
+    /// labels can be painted in gamma space as egui wants.
     pub target: Offscreen,
+    labels: Option<LabelPainter>,
 }
 
 impl OffscreenRenderer {
     pub fn new(world: &World, width: u32, height: u32) -> Result<OffscreenRenderer, NoGpu> {
         let gpu = Gpu::headless()?;
-        let format = wgpu::TextureFormat::Rgba8UnormSrgb;
-        let mut renderer = Renderer::new(&gpu, format);
+        let format = wgpu::TextureFormat::Rgba8Unorm;
+        let mut renderer = Renderer::new(&gpu, format.add_srgb_suffix());
         renderer.set_world(&gpu.device, world);
         renderer.resize(&gpu.device, width, height);
         let target = Offscreen::new(&gpu.device, width, height, format);
@@ -431,6 +482,7 @@ impl OffscreenRenderer {
             gpu,
             renderer,
             target,
+            labels: None,
         })
     }
 
@@ -441,18 +493,47 @@ impl OffscreenRenderer {
         camera: &OrbitCamera,
         options: &DrawOptions,
     ) -> anyhow::Result<Image> {
-        let aspect = self.target.width as f64 / self.target.height as f64;
+        self.render_worlds(&[world], camera, options, &[])
+    }
+
+    /// Renders compared worlds (panes side by side, or ghosts) with `labels` over them, and
+    /// reads the picture back.
+    pub fn render_worlds(
+        &mut self,
+        worlds: &[&World],
+        camera: &OrbitCamera,
+        options: &DrawOptions,
+        labels: &[Label],
+    ) -> anyhow::Result<Image> {
+        let (width, height) = (self.target.width, self.target.height);
+        let aspect =
+            compare::pane_aspect(width as f64, height as f64, worlds.len(), options.layout);
+        let gpu = &self.gpu;
         self.renderer.prepare(
-            &self.gpu.device,
-            &self.gpu.queue,
-            world,
+            &gpu.device,
+            &gpu.queue,
+            worlds,
             &camera.matrices(aspect),
             options,
         );
-        let mut encoder = self.gpu.device.create_command_encoder(&Default::default());
-        self.renderer.draw(&mut encoder, &self.target.view, None);
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        self.renderer
+            .draw(&mut encoder, &self.target.srgb_view, None);
+        if !labels.is_empty() {
+            let format = self.target.format;
+            let painter = self
+                .labels
+                .get_or_insert_with(|| LabelPainter::new(&gpu.device, format));
+            painter.paint(
+                gpu,
+                &mut encoder,
+                &self.target.view,
+                (width, height),
+                labels,
+            );
+        }
         self.target.copy_to_buffer(&mut encoder);
-        self.gpu.queue.submit([encoder.finish()]);
-        self.target.read(&self.gpu.device)
+        gpu.queue.submit([encoder.finish()]);
+        self.target.read(&gpu.device)
     }
 }

@@ -1,8 +1,15 @@
-//! The simulation as the viewer drives it: fixed steps following wall-clock time, capped so the
-//! window stays responsive, with the statistics and history the panel shows.
+//! The simulation as the viewer drives it, and the API the tests drive it through: fixed steps
+//! following wall-clock time, capped so the window stays responsive; one world, or two of the
+//! same scene with different settings stepped in lockstep ([`Lane`]s); the rewind history; the
+//! mouse grab; and the scene's source, reloaded when its files change.
 
-use crate::World;
+use super::grab;
+use super::scene_source::SceneSource;
+use super::timeline::{self, Timeline};
+use super::watch::FileWatch;
 use crate::sim::stats::{StageTimings, StepStats};
+use crate::{LoadError, Settings, World};
+use glam::DVec3;
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
@@ -14,141 +21,309 @@ pub struct Sample {
     pub violation: f64,
 }
 
-pub struct Session {
+/// One world of the session with its statistics and plot.
+pub struct Lane {
     pub world: World,
-    /// Scene name or path, for display and reloading.
-    pub scene: String,
-    pub playing: bool,
-    /// Real seconds not yet simulated.
-    accumulator: f64,
     /// Statistics of the last step.
     pub last: StepStats,
-    /// Summed stage timings of the steps of the last frame.
+    /// Summed stage timings of the steps of the last frame, and their number.
     pub frame_timings: StageTimings,
     pub frame_steps: u32,
-    /// The last frame could not simulate all the real time that passed.
-    pub behind: bool,
-    /// (real seconds, simulated seconds) of recent frames, for the sim/real ratio.
-    pace: VecDeque<(f64, f64)>,
-    pub history: VecDeque<Sample>,
-    /// Seconds of simulated time the plot keeps.
-    pub history_span: f64,
-    /// Most steps per frame, and most wall time spent stepping per frame.
-    pub max_steps_per_frame: u32,
-    pub step_budget: Duration,
+    /// Energy and violation over the last `plot_span` simulated seconds.
+    pub plot: VecDeque<Sample>,
 }
 
-impl Session {
-    pub fn new(world: World, scene: String) -> Session {
-        let mut session = Session {
+impl Lane {
+    fn new(world: World) -> Lane {
+        Lane {
             world,
-            scene,
-            playing: true,
-            accumulator: 0.0,
             last: StepStats::default(),
             frame_timings: StageTimings::default(),
             frame_steps: 0,
-            behind: false,
-            pace: VecDeque::new(),
-            history: VecDeque::new(),
-            history_span: 10.0,
-            max_steps_per_frame: 200,
-            step_budget: Duration::from_millis(33),
-        };
-        session.sample();
-        session
-    }
-
-    /// Swaps in another world (a newly loaded scene), keeping the play state.
-    pub fn replace(&mut self, world: World, scene: String) {
-        self.world = world;
-        self.scene = scene;
-        self.restart_bookkeeping();
-    }
-
-    pub fn reset(&mut self) {
-        self.world.reset();
-        self.restart_bookkeeping();
-    }
-
-    fn restart_bookkeeping(&mut self) {
-        self.accumulator = 0.0;
-        self.last = StepStats::default();
-        self.frame_timings = StageTimings::default();
-        self.frame_steps = 0;
-        self.behind = false;
-        self.pace.clear();
-        self.history.clear();
-        self.sample();
-    }
-
-    fn sample(&mut self) {
-        let sample = Sample {
-            time: self.world.time,
-            energy: self.world.total_energy(),
-            violation: self.world.max_constraint_violation(),
-        };
-        self.history.push_back(sample);
-        while self
-            .history
-            .front()
-            .is_some_and(|s| s.time < sample.time - self.history_span)
-        {
-            self.history.pop_front();
+            plot: VecDeque::new(),
         }
     }
 
-    /// One step, whatever the play state (S key, Step button).
-    pub fn step_once(&mut self) {
-        self.frame_timings = StageTimings::default();
-        self.frame_steps = 0;
-        self.do_step();
-        self.sample();
-    }
-
-    fn do_step(&mut self) {
+    fn step(&mut self) {
         let stats = self.world.step();
         self.frame_timings.add(&stats.timings);
         self.frame_steps += 1;
         self.last = stats;
     }
 
-    /// Advances by `real_dt` seconds of wall-clock time when playing: as many steps as fit, at
-    /// most `max_steps_per_frame` and `step_budget` of stepping; what does not fit is dropped
-    /// (the simulation runs slower than real time and [`Self::ratio`] says by how much).
-    /// `after_step` runs after every step (the viewer's recorder samples frames there).
-    pub fn advance(&mut self, real_dt: f64, mut after_step: impl FnMut(&World)) {
+    /// Steps until the world's time is within half a step of `time` (lockstep with the first
+    /// world, whatever this one's time step).
+    fn catch_up(&mut self, time: f64) {
+        let dt = self.world.settings.time_step;
+        if !(dt.is_finite() && dt > 0.0) {
+            return;
+        }
+        while self.world.time < time - 0.5 * dt {
+            self.step();
+        }
+    }
+
+    fn begin_frame(&mut self) {
+        self.frame_timings = StageTimings::default();
+        self.frame_steps = 0;
+    }
+
+    /// Adds the current state to the plot, dropping samples older than `span` seconds and any
+    /// after the current time (left from before a rewind).
+    fn sample(&mut self, span: f64) {
+        let sample = Sample {
+            time: self.world.time,
+            energy: self.world.total_energy(),
+            violation: self.world.max_constraint_violation(),
+        };
+        while self.plot.back().is_some_and(|s| s.time >= sample.time) {
+            self.plot.pop_back();
+        }
+        self.plot.push_back(sample);
+        while self
+            .plot
+            .front()
+            .is_some_and(|s| s.time < sample.time - span)
+        {
+            self.plot.pop_front();
+        }
+    }
+}
+
+pub struct Session {
+    /// The first world, then the compared one (if any).
+    pub lanes: Vec<Lane>,
+    /// Where the scene comes from, for reloading.
+    pub source: SceneSource,
+    pub playing: bool,
+    /// Real seconds not yet simulated.
+    accumulator: f64,
+    /// The last frame could not simulate all the real time that passed.
+    pub behind: bool,
+    /// (real seconds, simulated seconds) of recent frames, for the sim/real ratio.
+    pace: VecDeque<(f64, f64)>,
+    /// Seconds of simulated time the plots keep.
+    pub plot_span: f64,
+    /// Most steps per frame, and most wall time spent stepping per frame.
+    pub max_steps_per_frame: u32,
+    pub step_budget: Duration,
+    /// Every state since the start, as far as the memory budget allows.
+    pub timeline: Timeline,
+    /// Natural frequency of the grab spring (Hz).
+    pub grab_hertz: f64,
+    /// Reload the scene when one of its files changes.
+    pub auto_reload: bool,
+    watch: FileWatch,
+}
+
+impl Session {
+    pub fn new(world: World, source: SceneSource) -> Session {
+        let mut session = Session {
+            lanes: vec![Lane::new(world)],
+            watch: FileWatch::new(source.files()),
+            source,
+            playing: true,
+            accumulator: 0.0,
+            behind: false,
+            pace: VecDeque::new(),
+            plot_span: 10.0,
+            max_steps_per_frame: 200,
+            step_budget: Duration::from_millis(33),
+            timeline: Timeline::new(timeline::DEFAULT_BUDGET),
+            grab_hertz: grab::DEFAULT_HERTZ,
+            auto_reload: true,
+        };
+        session.restart_bookkeeping();
+        session
+    }
+
+    /// The first world (the one the panel's settings and the selection refer to).
+    pub fn world(&self) -> &World {
+        &self.lanes[0].world
+    }
+
+    pub fn world_mut(&mut self) -> &mut World {
+        &mut self.lanes[0].world
+    }
+
+    /// Every world, first to last.
+    pub fn worlds(&self) -> Vec<&World> {
+        self.lanes.iter().map(|l| &l.world).collect()
+    }
+
+    pub fn comparing(&self) -> bool {
+        self.lanes.len() > 1
+    }
+
+    /// Scene name or path, for display.
+    pub fn scene(&self) -> String {
+        self.source.name()
+    }
+
+    /// Compares the scene with `settings`: both worlds start again from the scene's start and
+    /// step in lockstep.
+    pub fn compare(&mut self, settings: Settings) {
+        self.lanes.truncate(1);
+        let first = &mut self.lanes[0].world;
+        first.reset();
+        first.grab = None;
+        let mut second = first.clone();
+        second.settings = settings;
+        self.lanes.push(Lane::new(second));
+        self.restart_bookkeeping();
+    }
+
+    /// Back to the first world alone; the history keeps its states.
+    pub fn stop_comparing(&mut self) {
+        self.lanes.truncate(1);
+        self.timeline.keep_lanes(1);
+    }
+
+    /// Swaps in a newly loaded scene, keeping each world's settings and the play state.
+    pub fn replace(&mut self, world: World, source: SceneSource) {
+        let settings: Vec<Settings> = self
+            .lanes
+            .iter()
+            .map(|l| l.world.settings.clone())
+            .collect();
+        self.lanes = settings
+            .into_iter()
+            .map(|settings| {
+                let mut w = world.clone();
+                w.settings = settings;
+                Lane::new(w)
+            })
+            .collect();
+        self.watch = FileWatch::new(source.files());
+        self.source = source;
+        self.restart_bookkeeping();
+    }
+
+    /// Loads `source` with the current settings; on an error the current scene stays.
+    pub fn open(&mut self, source: SceneSource) -> Result<(), LoadError> {
+        let world = source.load(self.world().settings.clone())?;
+        for w in &world.warnings {
+            eprintln!("warning: {w}");
+        }
+        self.replace(world, source);
+        Ok(())
+    }
+
+    /// When reloading is on and one of the scene's files changed since the last poll: loads the
+    /// scene again (None when nothing changed). On an error the current scene keeps running;
+    /// the files stay watched either way.
+    pub fn poll_files(&mut self) -> Option<Result<(), LoadError>> {
+        if !self.auto_reload {
+            return None;
+        }
+        self.watch.poll()?;
+        let result = self.open(self.source.clone());
+        if result.is_err() {
+            // The scene may now name other meshes: watch those.
+            self.watch = FileWatch::new(self.source.files());
+        }
+        Some(result)
+    }
+
+    /// The files being watched.
+    pub fn watched_files(&self) -> impl Iterator<Item = &std::path::Path> {
+        self.watch.files()
+    }
+
+    pub fn reset(&mut self) {
+        for lane in &mut self.lanes {
+            lane.world.reset();
+        }
+        self.restart_bookkeeping();
+    }
+
+    fn restart_bookkeeping(&mut self) {
+        self.accumulator = 0.0;
+        self.behind = false;
+        self.pace.clear();
+        for lane in &mut self.lanes {
+            lane.last = StepStats::default();
+            lane.begin_frame();
+            lane.plot.clear();
+            lane.sample(self.plot_span);
+        }
+        self.timeline.clear();
+        self.timeline.record(self.lanes.iter().map(|l| &l.world));
+    }
+
+    /// One tick: the first world steps once, the others catch up with it; the states go into
+    /// the history (dropping those after the current one when resuming from the past).
+    fn tick(&mut self) {
+        let (first, others) = self.lanes.split_first_mut().expect("one lane at least");
+        first.step();
+        for lane in others {
+            lane.catch_up(first.world.time);
+        }
+        self.timeline.record(self.lanes.iter().map(|l| &l.world));
+    }
+
+    fn begin_frame(&mut self) {
+        for lane in &mut self.lanes {
+            lane.begin_frame();
+        }
+    }
+
+    fn sample(&mut self) {
+        for lane in &mut self.lanes {
+            lane.sample(self.plot_span);
+        }
+    }
+
+    /// Steps taken in the last frame by the first world.
+    pub fn frame_steps(&self) -> u32 {
+        self.lanes[0].frame_steps
+    }
+
+    /// One tick, whatever the play state (S key, Step button, Right at the end of the history).
+    pub fn step_once(&mut self) {
+        self.begin_frame();
+        self.tick();
+        self.sample();
+    }
+
+    /// Advances by `real_dt` seconds of wall-clock time when playing: as many ticks of the first
+    /// world's `dt` as fit, at most `max_steps_per_frame` and `step_budget` of stepping; what
+    /// does not fit is dropped (the simulation runs slower than real time and [`Self::ratio`]
+    /// says by how much). `after_tick` runs after every tick (the recorder samples frames there).
+    pub fn advance(&mut self, real_dt: f64, mut after_tick: impl FnMut(&[Lane])) {
         if !self.playing {
             return;
         }
-        let dt = self.world.settings.time_step;
-        self.frame_timings = StageTimings::default();
-        self.frame_steps = 0;
+        let dt = self.world().settings.time_step;
+        self.begin_frame();
         if !(dt.is_finite() && dt > 0.0) {
             return;
         }
         let real_dt = real_dt.clamp(0.0, 0.25);
         self.accumulator += real_dt;
         let start = Instant::now();
-        let sim_before = self.world.time;
+        let sim_before = self.world().time;
         self.behind = false;
+        let mut ticks = 0;
         // A relative epsilon: 0.1 s of real time at dt = 0.02 is 5 steps, not 4 and a remainder.
         while self.accumulator >= dt * (1.0 - 1e-9) {
-            if self.frame_steps >= self.max_steps_per_frame || start.elapsed() >= self.step_budget {
+            if ticks >= self.max_steps_per_frame || start.elapsed() >= self.step_budget {
                 self.behind = true;
                 self.accumulator = 0.0;
                 break;
             }
-            self.do_step();
+            self.tick();
+            ticks += 1;
             self.accumulator -= dt;
-            after_step(&self.world);
+            after_tick(&self.lanes);
         }
-        self.pace.push_back((real_dt, self.world.time - sim_before));
+        self.pace
+            .push_back((real_dt, self.world().time - sim_before));
         let mut total = self.pace.iter().map(|p| p.0).sum::<f64>();
         while total > 1.0 && self.pace.len() > 1 {
             total -= self.pace.pop_front().map_or(0.0, |p| p.0);
         }
-        if self.frame_steps > 0 {
+        if ticks > 0 {
             self.sample();
         }
     }
@@ -173,6 +348,86 @@ impl Session {
             self.playing = true;
         }
     }
+
+    /// Pauses and puts every world back to entry `index` of the history (clamped). Resuming
+    /// from there drops the later entries.
+    pub fn seek(&mut self, index: usize) {
+        self.pause();
+        let Some(states) = self.timeline.seek(index) else {
+            return;
+        };
+        for (lane, state) in self.lanes.iter_mut().zip(states) {
+            lane.world.restore(state);
+            lane.last = StepStats::default();
+        }
+    }
+
+    /// Pauses at the state after step `step` of the first world; false when the history no
+    /// longer holds it.
+    pub fn seek_step(&mut self, step: u64) -> bool {
+        match self.timeline.index_of_step(step) {
+            Some(index) => {
+                self.seek(index);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Left arrow: one state back (pauses).
+    pub fn step_back(&mut self) {
+        self.seek(self.timeline.cursor().saturating_sub(1));
+    }
+
+    /// Right arrow: one state forward in the history, or a new step at its end (pauses).
+    pub fn step_forward(&mut self) {
+        if self.timeline.at_end() {
+            self.pause();
+            self.step_once();
+        } else {
+            self.seek(self.timeline.cursor() + 1);
+        }
+    }
+
+    /// Starts pulling `local_point` (body space) of `body` towards `target` in every world;
+    /// false when the body cannot move.
+    pub fn grab(&mut self, body: usize, local_point: DVec3, target: DVec3) -> bool {
+        let hertz = self.grab_hertz;
+        let mut any = false;
+        for lane in &mut self.lanes {
+            any |= grab::attach(&mut lane.world, body, local_point, target, hertz);
+        }
+        if any && !self.playing {
+            self.drag_grab(target);
+        }
+        any
+    }
+
+    /// Moves the grab's target. While paused, the grabbed bodies are moved there directly and
+    /// the history's current state becomes the edited one.
+    pub fn drag_grab(&mut self, target: DVec3) {
+        let hertz = self.grab_hertz;
+        for lane in &mut self.lanes {
+            grab::retarget(&mut lane.world, target, hertz);
+            if !self.playing {
+                grab::place(&mut lane.world);
+            }
+        }
+        if !self.playing && self.grabbing() {
+            self.timeline
+                .replace_current(self.lanes.iter().map(|l| &l.world));
+        }
+    }
+
+    pub fn release_grab(&mut self) {
+        for lane in &mut self.lanes {
+            lane.world.grab = None;
+        }
+    }
+
+    pub fn grabbing(&self) -> bool {
+        self.lanes.iter().any(|l| l.world.grab.is_some())
+    }
 }
 
 #[cfg(test)]
@@ -186,7 +441,7 @@ mod tests {
             crate::Settings::default(),
         )
         .unwrap();
-        Session::new(world, "mixed".into())
+        Session::new(world, SceneSource::named("mixed"))
     }
 
     #[test]
@@ -197,9 +452,9 @@ mod tests {
             s.advance(0.05, |_| seen += 1);
         }
         // 0.5 s at dt = 0.02: 25 steps (the accumulator carries the remainder).
-        assert_eq!(s.world.step_count, 25);
+        assert_eq!(s.world().step_count, 25);
         assert_eq!(seen, 25);
-        assert!((s.world.time - 0.5).abs() < 1e-9);
+        assert!((s.world().time - 0.5).abs() < 1e-9);
     }
 
     #[test]
@@ -218,17 +473,37 @@ mod tests {
     fn settings_change_applies_without_reset() {
         let mut s = session();
         s.advance(0.1, |_| {});
-        let steps = s.world.step_count;
-        s.world.settings.time_step = 0.01;
+        let steps = s.world().step_count;
+        s.world_mut().settings.time_step = 0.01;
         s.advance(0.1, |_| {});
-        assert_eq!(s.world.step_count, steps + 10);
+        assert_eq!(s.world().step_count, steps + 10);
         s.pause();
         s.advance(1.0, |_| {});
-        assert_eq!(s.world.step_count, steps + 10);
+        assert_eq!(s.world().step_count, steps + 10);
         s.step_once();
-        assert_eq!(s.world.step_count, steps + 11);
+        assert_eq!(s.world().step_count, steps + 11);
         s.reset();
-        assert_eq!(s.world.step_count, 0);
-        assert_eq!(s.world.settings.time_step, 0.01);
+        assert_eq!(s.world().step_count, 0);
+        assert_eq!(s.world().settings.time_step, 0.01);
+    }
+
+    #[test]
+    fn arrows_walk_the_history_and_resuming_drops_the_future() {
+        let mut s = session();
+        for _ in 0..10 {
+            s.step_once();
+        }
+        assert_eq!(s.timeline.len(), 11);
+        s.step_back();
+        s.step_back();
+        assert_eq!(s.world().step_count, 8);
+        s.step_forward();
+        assert_eq!(s.world().step_count, 9);
+        s.step_once();
+        assert_eq!(s.world().step_count, 10);
+        assert_eq!(s.timeline.len(), 11, "step 10 replaced, nothing after it");
+        assert!(s.timeline.at_end());
+        s.step_forward();
+        assert_eq!(s.world().step_count, 11);
     }
 }

@@ -96,11 +96,6 @@ impl ViewRect {
         x >= vx && y >= vy && x < vx + vw && y < vy + vh
     }
 
-    /// A window position relative to the view's top left corner.
-    pub fn local(self, (x, y): (f64, f64)) -> (f64, f64) {
-        (x - self.0[0] as f64, y - self.0[1] as f64)
-    }
-
     /// Rounded to whole pixels (x, y, width, height).
     pub fn pixels(self) -> [u32; 4] {
         self.0.map(|v| v.max(0.0).round() as u32)

@@ -3,10 +3,12 @@
 //! simulated speed whatever the window's frame rate. The encoding is [`super::record`]'s.
 
 use super::gpu::Image;
+use super::labels::{Label, LabelPainter};
 use super::present::{SceneView, prepare_scene};
 use super::record::FrameWriter;
+use super::session::Lane;
 use super::window::{Gfx, ViewRect};
-use crate::World;
+use crate::{StepStats, World};
 use std::path::{Path, PathBuf};
 
 pub struct Recording {
@@ -17,6 +19,8 @@ pub struct Recording {
     /// Frame size (pixels), fixed for the whole recording.
     width: u32,
     height: u32,
+    /// Paints the compared worlds' labels into the frames.
+    labels: Option<LabelPainter>,
 }
 
 impl Recording {
@@ -36,6 +40,7 @@ impl Recording {
                 next: time,
                 width,
                 height,
+                labels: None,
             }),
             Err(e) => Err(format!("cannot record: {e:#}")),
         }
@@ -58,18 +63,19 @@ impl Recording {
         Ok((path, frames))
     }
 
-    /// Pushes the frames due at `world.time`: one render serves every frame time the last step
-    /// passed.
+    /// Pushes the frames due at the first world's time: one render serves every frame time the
+    /// last step passed. `lanes`: the world and those compared with it, labelled in the frames.
     pub fn capture_due(
         &mut self,
         gfx: &mut Gfx,
-        world: &World,
+        lanes: &[Lane],
         view: SceneView<'_>,
     ) -> anyhow::Result<()> {
+        let world = &lanes[0].world;
         if world.time + 1e-9 < self.next {
             return Ok(());
         }
-        let image = render_view(gfx, world, view)?;
+        let image = render_view(gfx, lanes, view, &mut self.labels)?;
         let frame = image.crop(0, 0, self.width, self.height);
         anyhow::ensure!(
             frame.width == self.width && frame.height == self.height,
@@ -83,24 +89,55 @@ impl Recording {
     }
 }
 
-/// Renders the scene alone and reads back the 3D view's pixels (top left = view's top left):
-/// from the scene texture, or from the window-sized capture drawn with a viewport.
-fn render_view(gfx: &mut Gfx, world: &World, view: SceneView<'_>) -> anyhow::Result<Image> {
-    let scene = prepare_scene(gfx, world, view);
+/// Renders the scene alone, with the compared worlds' labels (painted by `painter`, made on
+/// first use), and reads back the 3D view's pixels (top left = view's top left): from the scene
+/// texture, or from the window-sized capture drawn with a viewport.
+fn render_view(
+    gfx: &mut Gfx,
+    lanes: &[Lane],
+    view: SceneView<'_>,
+    painter: &mut Option<LabelPainter>,
+) -> anyhow::Result<Image> {
+    let worlds: Vec<&World> = lanes.iter().map(|l| &l.world).collect();
+    let scene = prepare_scene(gfx, &worlds, view);
     let mut encoder = gfx.gpu.device.create_command_encoder(&Default::default());
-    if scene.is_some() {
-        let target = gfx.scene.as_ref().expect("sized by prepare_scene");
-        gfx.renderer.draw(&mut encoder, &target.view, None);
-        target.copy_to_buffer(&mut encoder);
-        gfx.gpu.queue.submit([encoder.finish()]);
-        return target.read(&gfx.gpu.device);
+    let target = if scene.is_some() {
+        gfx.scene.as_ref().expect("sized by prepare_scene")
+    } else {
+        gfx.ensure_window_capture();
+        gfx.capture.as_ref().expect("created above")
+    };
+    // Drawn into the scene texture whole, or into the capture within the view.
+    let rect = match scene {
+        Some(_) => [0.0, 0.0, target.width as f32, target.height as f32],
+        None => view.rect.0,
+    };
+    gfx.renderer.draw(
+        &mut encoder,
+        &target.srgb_view,
+        scene.is_none().then_some(rect),
+    );
+    if lanes.len() > 1 {
+        let stats: Vec<(&World, &StepStats)> = lanes.iter().map(|l| (&l.world, &l.last)).collect();
+        let labels = Label::for_panes(rect, &stats, view.draw.layout);
+        painter
+            .get_or_insert_with(|| LabelPainter::new(&gfx.gpu.device, target.format))
+            .paint(
+                &gfx.gpu,
+                &mut encoder,
+                &target.view,
+                (target.width, target.height),
+                &labels,
+            );
     }
-    gfx.ensure_window_capture();
-    let capture = gfx.capture.as_ref().expect("created above");
-    gfx.renderer
-        .draw(&mut encoder, &capture.srgb_view, Some(view.rect.0));
-    capture.copy_to_buffer(&mut encoder);
+    target.copy_to_buffer(&mut encoder);
     gfx.gpu.queue.submit([encoder.finish()]);
-    let [x, y, w, h] = view.rect.pixels();
-    Ok(capture.read(&gfx.gpu.device)?.crop(x, y, w, h))
+    let image = target.read(&gfx.gpu.device)?;
+    Ok(match scene {
+        Some(_) => image,
+        None => {
+            let [x, y, w, h] = view.rect.pixels();
+            image.crop(x, y, w, h)
+        }
+    })
 }

@@ -1,0 +1,360 @@
+//! The viewer's session, driven headless through the API the window uses: rewinding repeats the
+//! steps bit for bit (both solvers, one world or two compared), compared worlds step with their
+//! own settings, a grab pulls with the force of a critically damped spring, and the scene reloads
+//! when its files change (an error keeps the old scene).
+#![cfg(feature = "viewer")]
+
+use glam::{DQuat, DVec3};
+use std::path::{Path, PathBuf};
+use tumble::scene::assets;
+use tumble::viewer::{SceneSource, Session, grab};
+use tumble::{ConstraintsChoice, RigidBody, Settings, Shape, World};
+
+fn load(scene: &str, settings: Settings) -> World {
+    tumble::scene::load(scene, &ConstraintsChoice::Auto, settings).unwrap()
+}
+
+fn session(scene: &str, settings: Settings) -> Session {
+    Session::new(load(scene, settings), SceneSource::named(scene))
+}
+
+/// Every body's pose and velocities as bits, and the time.
+fn bits(world: &World) -> Vec<u64> {
+    let mut out = vec![world.time.to_bits(), world.step_count];
+    for b in &world.bodies {
+        let (p, q, v, w) = (
+            b.position,
+            b.orientation,
+            b.linear_velocity,
+            b.angular_velocity,
+        );
+        let values = [
+            p.x, p.y, p.z, q.x, q.y, q.z, q.w, v.x, v.y, v.z, w.x, w.y, w.z,
+        ];
+        out.extend(values.iter().map(|x| x.to_bits()));
+    }
+    out
+}
+
+fn all_bits(session: &Session) -> Vec<Vec<u64>> {
+    session.lanes.iter().map(|l| bits(&l.world)).collect()
+}
+
+/// 200 steps, back to step 100, 100 steps: the same bits as the first run's step 200.
+fn check_rewind(session: &mut Session, what: &str) {
+    for _ in 0..200 {
+        session.step_once();
+    }
+    let first = all_bits(session);
+    assert!(session.seek_step(100), "{what}: step 100 is in the history");
+    assert_eq!(session.world().step_count, 100, "{what}");
+    assert!(!session.playing, "{what}: seeking pauses");
+    for _ in 0..100 {
+        session.step_once();
+    }
+    assert!(first == all_bits(session), "{what}: rewound run differs");
+    assert!(
+        session.timeline.at_end(),
+        "{what}: the old future was dropped"
+    );
+    assert_eq!(session.timeline.len(), 201, "{what}");
+}
+
+#[test]
+fn rewinding_repeats_the_steps_bit_for_bit() {
+    for settings in [Settings::default(), Settings::accurate()] {
+        for scene in ["pile-60", "two-chain"] {
+            let what = format!("{scene}, solver {:?}", settings.solver);
+            check_rewind(&mut session(scene, settings.clone()), &what);
+        }
+    }
+}
+
+#[test]
+fn compared_worlds_rewind_in_lockstep() {
+    let mut s = session("stress", Settings::default());
+    s.compare(Settings::accurate());
+    check_rewind(&mut s, "stress, coursework against accurate");
+    assert_eq!(s.lanes[1].world.step_count, 200);
+}
+
+#[test]
+fn the_history_is_bounded_by_its_memory_budget() {
+    let mut s = session("pile-60", Settings::default());
+    s.step_once();
+    let per_step = s.timeline.span().bytes / 2;
+    s.timeline.set_budget(50 * per_step);
+    for _ in 0..200 {
+        s.step_once();
+    }
+    let span = s.timeline.span();
+    assert!(span.bytes <= 50 * per_step, "{span:?}");
+    assert!(
+        (45..=50).contains(&s.timeline.len()),
+        "{}",
+        s.timeline.len()
+    );
+    assert_eq!(span.last_step, 201);
+    assert!(!s.seek_step(100), "step 100 fell out of the history");
+    assert!(s.seek_step(span.first_step));
+    assert_eq!(s.world().step_count, span.first_step);
+}
+
+/// Two lanes of a comparison each equal an independent world stepped with their settings, the
+/// second at half the time step (twice the steps).
+#[test]
+fn compared_worlds_step_with_their_own_settings() {
+    let mut s = session("tower", Settings::default());
+    let fine = Settings {
+        time_step: 0.01,
+        ..Settings::accurate()
+    };
+    s.compare(fine.clone());
+    for _ in 0..10 {
+        s.advance(0.05, |_| {});
+    }
+    let (a, b) = (&s.lanes[0].world, &s.lanes[1].world);
+    assert_eq!((a.step_count, b.step_count), (25, 50));
+    assert!((a.time - b.time).abs() < 1e-9);
+    let mut alone_a = load("tower", Settings::default());
+    let mut alone_b = load("tower", fine);
+    for _ in 0..25 {
+        alone_a.step();
+    }
+    for _ in 0..50 {
+        alone_b.step();
+    }
+    assert!(
+        bits(a) == bits(&alone_a),
+        "world A differs from the world alone"
+    );
+    assert!(
+        bits(b) == bits(&alone_b),
+        "world B differs from the world alone"
+    );
+    assert!(
+        bits(a)[2..] != bits(b)[2..],
+        "the settings make a difference"
+    );
+}
+
+/// Two boxes far apart in the air, of densities 60x apart.
+fn two_boxes(settings: Settings) -> Session {
+    let shape = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(1.0, 0.5, 0.75))).unwrap();
+    let body = |density, x| {
+        RigidBody::on_shape(
+            &shape,
+            0,
+            density,
+            false,
+            DVec3::new(x, 40.0, 0.0),
+            DQuat::from_rotation_z(0.3),
+        )
+    };
+    let bodies = vec![body(50.0, -20.0), body(3000.0, 20.0)];
+    let world = World::new(
+        vec![shape.clone()],
+        vec!["box".into()],
+        bodies,
+        Vec::new(),
+        settings,
+    );
+    Session::new(world, SceneSource::named("two boxes"))
+}
+
+/// The closed form of a critically damped spring-damper of frequency `hertz` on mass `m`,
+/// integrated implicitly over `h`: the force from offset `c` and velocity `v`.
+fn spring_force(m: f64, hertz: f64, h: f64, c: DVec3, v: DVec3) -> DVec3 {
+    let omega = std::f64::consts::TAU * hertz;
+    let (k, d) = (m * omega * omega, 2.0 * m * omega);
+    -(k * c + (h * k + d) * v) / (1.0 + (h * h * k + h * d) / m)
+}
+
+#[test]
+fn a_grab_pulls_with_the_force_of_a_critically_damped_spring() {
+    for settings in [Settings::default(), Settings::accurate()] {
+        let what = format!("solver {:?}", settings.solver);
+        let mut s = two_boxes(settings.clone());
+        s.grab_hertz = 3.0;
+        for _ in 0..10 {
+            s.step_once();
+        }
+        let body = s.world().bodies[0].clone();
+        let target = body.position + DVec3::new(2.0, 3.0, -1.0);
+        assert!(s.grab(0, DVec3::ZERO, target), "{what}");
+        let (point, force) = grab::force(s.world()).unwrap();
+        assert_eq!(point, body.position);
+        let h = settings.time_step / settings.substeps as f64;
+        let expected = spring_force(
+            body.mass,
+            3.0,
+            h,
+            body.position - target,
+            body.linear_velocity,
+        );
+        assert!(
+            (force - expected).length() <= 1e-9 * expected.length(),
+            "{what}: force {force} vs the spring's {expected}"
+        );
+        // Pulled to the target within 2 s (from 3.7 units away), hanging under it: gravity
+        // stretches the spring by g / omega^2, and by up to twice that with the step's damping.
+        for _ in 0..100 {
+            s.step_once();
+        }
+        let sag = 9.8 / (std::f64::consts::TAU * 3.0).powi(2);
+        let offset = s.world().bodies[0].position - target;
+        assert!(
+            offset.y < 0.0 && offset.y > -2.5 * sag && offset.x.abs() + offset.z.abs() < 1e-6,
+            "{what}: {offset} from the target"
+        );
+    }
+}
+
+/// The grabbed point moves the same way on a light and a heavy body: the force scales with the
+/// mass.
+#[test]
+fn light_and_heavy_bodies_follow_alike() {
+    let local = DVec3::new(0.0, 0.5, 0.0);
+    let offset = DVec3::new(3.0, 2.0, 1.0);
+    let moved: Vec<DVec3> = (0..2)
+        .map(|i| {
+            let mut s = two_boxes(Settings::default());
+            let start = s.world().bodies[i].world_point(local);
+            assert!(s.grab(i, local, start + offset));
+            for _ in 0..60 {
+                s.step_once();
+            }
+            s.world().bodies[i].world_point(local) - start
+        })
+        .collect();
+    let masses: Vec<f64> = two_boxes(Settings::default())
+        .world()
+        .bodies
+        .iter()
+        .map(|b| b.mass)
+        .collect();
+    assert!(masses[1] > 50.0 * masses[0]);
+    assert!((moved[0] - offset).length() < 0.3, "moved {}", moved[0]);
+    assert!(
+        (moved[0] - moved[1]).length() < 1e-6,
+        "the light body's point moved {}, the heavy one's {}",
+        moved[0],
+        moved[1]
+    );
+}
+
+#[test]
+fn a_paused_drag_moves_the_pose_in_every_world() {
+    let mut s = two_boxes(Settings::default());
+    s.compare(Settings::accurate());
+    for _ in 0..5 {
+        s.step_once();
+    }
+    s.pause();
+    let local = DVec3::new(0.5, 0.0, 0.25);
+    let before = s.world().bodies[1].clone();
+    let picked = before.world_point(local);
+    assert!(s.grab(1, local, picked));
+    let target = picked + DVec3::new(-1.0, 2.0, 0.5);
+    s.drag_grab(target);
+    for lane in &s.lanes {
+        let b = &lane.world.bodies[1];
+        assert!((b.world_point(local) - target).length() < 1e-12);
+        assert_eq!(b.orientation, before.orientation);
+    }
+    assert_eq!(s.world().bodies[1].linear_velocity, before.linear_velocity);
+    s.release_grab();
+    assert!(!s.grabbing());
+    // The edited state is the history's current one: stepping back and forth comes back to it.
+    s.step_back();
+    s.step_forward();
+    assert!((s.world().bodies[1].world_point(local) - target).length() < 1e-12);
+}
+
+/// A scratch directory with tumble's box mesh in it.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("tumble-viewer-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let mesh = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/box.mesh");
+    std::fs::copy(mesh, dir.join("box.mesh")).unwrap();
+    dir
+}
+
+fn boxes_scene(count: usize) -> String {
+    let mut text = format!("{count}\n");
+    for k in 0..count {
+        text += &format!("box.mesh 1000 0  {} 5 0  1 0 0 0\n", 3 * k);
+    }
+    text
+}
+
+#[test]
+fn an_edited_scene_file_reloads_and_an_error_keeps_the_old_scene() {
+    let dir = scratch("reload");
+    let path = dir.join("boxes-scene.txt");
+    std::fs::write(&path, boxes_scene(1)).unwrap();
+    let source = SceneSource::named(&path.to_string_lossy());
+    let mut s = Session::new(source.load(Settings::default()).unwrap(), source);
+    let watched: Vec<PathBuf> = s.watched_files().map(Path::to_path_buf).collect();
+    assert!(watched.contains(&path) && watched.contains(&dir.join("box.mesh")));
+    assert!(watched.contains(&dir.join("boxes-constraints.txt")));
+    s.world_mut().settings.time_step = 0.01;
+    s.step_once();
+    assert!(s.poll_files().is_none(), "nothing changed");
+
+    std::fs::write(&path, boxes_scene(2)).unwrap();
+    assert!(matches!(s.poll_files(), Some(Ok(()))));
+    assert_eq!(s.world().bodies.len(), 2);
+    assert_eq!(s.world().step_count, 0);
+    assert_eq!(s.world().settings.time_step, 0.01, "settings are kept");
+
+    let broken = boxes_scene(2).replace("box.mesh 1000 0  3", "box.mesh 1000 0  x3");
+    std::fs::write(&path, broken).unwrap();
+    let error = s.poll_files().unwrap().unwrap_err();
+    assert_eq!(
+        (error.file.as_path(), error.line),
+        (path.as_path(), Some(3))
+    );
+    assert_eq!(s.world().bodies.len(), 2, "the old scene stays");
+
+    std::fs::write(&path, boxes_scene(3)).unwrap();
+    assert!(matches!(s.poll_files(), Some(Ok(()))));
+    assert_eq!(s.world().bodies.len(), 3);
+    // Editing the mesh reloads too.
+    let mut mesh = std::fs::read_to_string(dir.join("box.mesh")).unwrap();
+    mesh.push('\n');
+    std::fs::write(dir.join("box.mesh"), mesh).unwrap();
+    assert!(matches!(s.poll_files(), Some(Ok(()))));
+    s.auto_reload = false;
+    std::fs::write(&path, boxes_scene(1)).unwrap();
+    assert!(s.poll_files().is_none(), "reloading is off");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_dropped_mesh_is_a_body_above_the_ground() {
+    let dir = scratch("drop");
+    let source = SceneSource::dropped(&dir.join("box.mesh"));
+    assert_eq!(source, SceneSource::Mesh(dir.join("box.mesh")));
+    let world = source.load(Settings::default()).unwrap();
+    assert_eq!(world.bodies.len(), 1);
+    let lowest = world
+        .current_vertices(0)
+        .iter()
+        .map(|v| v.y)
+        .fold(f64::INFINITY, f64::min);
+    assert!(lowest > 0.0, "lowest point at {lowest}");
+    let scene = dir.join("x-scene.txt");
+    assert!(matches!(
+        SceneSource::dropped(&scene),
+        SceneSource::Scene { .. }
+    ));
+    let bad = dir.join("bad.off");
+    std::fs::write(&bad, "OFF\n3 1 0\n0 0 0\n").unwrap();
+    let error = SceneSource::dropped(&bad)
+        .load(Settings::default())
+        .unwrap_err();
+    assert_eq!(error.file, bad);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
