@@ -509,3 +509,42 @@ fn compared_worlds_are_drawn_side_by_side() {
     }
     assert!(differ > 0, "the two worlds should differ somewhere");
 }
+
+/// Resting bodies of the soft step fall asleep; the viewer draws them dimmed (same hue, darker)
+/// and the others in their own colour.
+#[test]
+fn asleep_bodies_are_dimmed() {
+    let settings = Settings {
+        restitution: 0.2,
+        ..Settings::accurate()
+    };
+    let mut world = tumble::scene::load("mixed", &ConstraintsChoice::Auto, settings).unwrap();
+    let mut steps = 0;
+    while world.bodies.iter().all(|b| !b.asleep) && steps < 2000 {
+        world.step();
+        steps += 1;
+    }
+    assert!(
+        world.bodies.iter().any(|b| b.asleep),
+        "nothing asleep after {steps} steps"
+    );
+    let Some(mut r) = renderer_or_skip(&world, 32, 32) else {
+        return;
+    };
+    let camera = framed(&world, 32, 32);
+    r.render(&world, &camera, &DrawOptions::default()).unwrap();
+    for (index, body) in world.bodies.iter().enumerate() {
+        let own = palette::linear(palette::body_srgb(index, body.fixed));
+        let expected = if body.asleep {
+            palette::asleep(own)
+        } else {
+            own
+        };
+        let inst = r.renderer.instance_of(index).unwrap();
+        assert_eq!(&inst.color[..3], &expected[..], "body {index}");
+        if body.asleep {
+            let sum = |c: [f32; 3]| c.iter().sum::<f32>();
+            assert!(sum(expected) < 0.5 * sum(own), "body {index} not dimmed");
+        }
+    }
+}

@@ -58,8 +58,8 @@ impl Layer {
         self.instance_buffer.reallocate_on_next_write();
     }
 
-    /// One instance per body in draw order: pose in f32, palette colour (or the quarantine
-    /// colour), and the highlight flag of the selected body.
+    /// One instance per body in draw order: pose in f32, palette colour (the quarantine colour,
+    /// dimmed when asleep), and the highlight flag of the selected body.
     fn build_instances(&mut self, world: &World, scene: &SceneData, selected: Option<usize>) {
         self.instances.clear();
         for &index in &scene.order {
@@ -68,6 +68,8 @@ impl Layer {
             let p = body.position.as_vec3();
             let color = if body.quarantined {
                 palette::linear(palette::QUARANTINED_SRGB)
+            } else if body.asleep {
+                palette::asleep(scene.base_colors[index as usize])
             } else {
                 scene.base_colors[index as usize]
             };

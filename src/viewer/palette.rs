@@ -16,6 +16,13 @@ pub fn body_srgb(index: usize, fixed: bool) -> [f32; 3] {
 /// Colour of a body frozen after its state went non-finite.
 pub const QUARANTINED_SRGB: [f32; 3] = [0.35, 0.05, 0.05];
 /// Clear colour.
+/// Asleep bodies keep their hue at this fraction of their linear brightness, halfway to grey,
+/// so a resting pile reads as resting without losing which body is which.
+pub fn asleep(linear: [f32; 3]) -> [f32; 3] {
+    let grey = (linear[0] + linear[1] + linear[2]) / 3.0;
+    linear.map(|c| 0.45 * (0.5 * c + 0.5 * grey))
+}
+
 pub const BACKGROUND_SRGB: [f32; 3] = [0.13, 0.14, 0.16];
 /// The ground plane under the grid.
 pub const GROUND_SRGB: [f32; 3] = [0.20, 0.21, 0.23];
