@@ -66,6 +66,15 @@ impl RapierScene {
         start.elapsed().as_secs_f64()
     }
 
+    /// Bodies Rapier has put to sleep.
+    pub fn asleep(&self) -> usize {
+        self.world
+            .bodies
+            .iter()
+            .filter(|(_, b)| b.is_sleeping())
+            .count()
+    }
+
     /// Copies poses and velocities into `world` (its mirror) and advances its clock by a step.
     pub fn copy_into(&self, world: &mut World) {
         for (body, &handle) in world.bodies.iter_mut().zip(&self.handles) {

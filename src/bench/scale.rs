@@ -1,6 +1,7 @@
-//! `tumble bench scale`: ms/step against scene size for the coursework's loop, tumble on one
-//! core, tumble on all cores (and Rapier with `--features compare-rapier`), with peak heap,
-//! a CSV and a log-log plot per scene family.
+//! `tumble bench scale`: ms/step against scene size for the coursework's loop, tumble's
+//! coursework solver and its soft step (the `--accurate` preset) on one core and on all cores,
+//! and Rapier with `--features compare-rapier`, with peak heap, a CSV and a log-log plot per
+//! scene family.
 
 use super::Progress;
 use super::alloc;
@@ -16,11 +17,16 @@ use std::time::Instant;
 /// What to measure.
 #[derive(Debug, Clone)]
 pub struct ScaleConfig {
-    /// Scene families: sparse, pile, chain.
+    /// Scene families: sparse, pile, chain, scatter.
     pub scenes: Vec<String>,
+    /// Body counts of sparse, pile and chain.
     pub sizes: Vec<usize>,
+    /// Body counts of scatter (constant density: it grows further).
+    pub scatter_sizes: Vec<usize>,
     /// Also run sparse-100000.
     pub huge: bool,
+    /// Variants to run (default: all that are built in).
+    pub variants: Vec<Variant>,
     /// Measured steps per run (after the warm-up).
     pub steps: usize,
     pub warmup: usize,
@@ -38,6 +44,7 @@ impl ScaleConfig {
         let mut c = self.clone();
         if c.quick {
             c.sizes = vec![100, 1000];
+            c.scatter_sizes = vec![1000];
             c.steps = c.steps.min(20);
             c.warmup = c.warmup.min(3);
             c.max_seconds = c.max_seconds.min(5.0);
@@ -51,18 +58,27 @@ impl ScaleConfig {
 pub enum Variant {
     /// All pairs, cyclic sweep, every current vertex recomputed every step (the coursework's loop).
     Coursework,
+    /// The coursework's solver with tumble's broad phase and sparse schedule.
     SingleThread,
     AllCores,
-    /// Rapier on the same scene (with `--features compare-rapier`).
+    /// The soft step ([`accurate_settings`]).
+    AccurateSingleThread,
+    AccurateAllCores,
+    /// Rapier on the same scene, frictionless and never sleeping: the coursework's physics.
     Rapier,
+    /// Rapier with the accurate variants' friction and restitution, sleeping on (its default).
+    RapierAccurate,
 }
 
 impl Variant {
-    pub const ALL: [Variant; 4] = [
+    pub const ALL: [Variant; 7] = [
         Variant::Coursework,
         Variant::SingleThread,
         Variant::AllCores,
+        Variant::AccurateSingleThread,
+        Variant::AccurateAllCores,
         Variant::Rapier,
+        Variant::RapierAccurate,
     ];
 
     pub fn name(self) -> &'static str {
@@ -70,8 +86,56 @@ impl Variant {
             Variant::Coursework => "coursework",
             Variant::SingleThread => "tumble_1_thread",
             Variant::AllCores => "tumble_all_cores",
+            Variant::AccurateSingleThread => "accurate_1_thread",
+            Variant::AccurateAllCores => "accurate_all_cores",
             Variant::Rapier => "rapier",
+            Variant::RapierAccurate => "rapier_accurate",
         }
+    }
+
+    pub fn from_name(name: &str) -> Option<Variant> {
+        Variant::ALL.into_iter().find(|v| v.name() == name)
+    }
+
+    fn is_rapier(self) -> bool {
+        matches!(self, Variant::Rapier | Variant::RapierAccurate)
+    }
+
+    fn single_thread(self) -> bool {
+        matches!(self, Variant::SingleThread | Variant::AccurateSingleThread)
+    }
+
+    /// Why this variant is left out of `scene-n`, if it is.
+    fn left_out(self, scene: &str, n: usize) -> Option<&'static str> {
+        if self.is_rapier() && !cfg!(feature = "compare-rapier") {
+            return Some("built without compare-rapier");
+        }
+        if scene == "sparse"
+            && n > 10_000
+            && self != Variant::SingleThread
+            && self != Variant::AllCores
+        {
+            // 100,000 bodies in sparse's 400 x 400 square start deep inside each other: 2.2
+            // million touching pairs in the first step (24 s and 5.8 GB for the soft step);
+            // Rapier, which keeps a contact pair per overlapping box, needed about 12 GB.
+            return Some("sparse-100000 starts with 2.2 million overlapping pairs");
+        }
+        if self == Variant::Coursework && n > 10_000 {
+            return Some("the coursework's all-pairs loop is quadratic: left out above 10,000");
+        }
+        None
+    }
+}
+
+/// Restitution of the accurate variants: a pile that bounces at e = 1 never rests, and the
+/// point of those variants is resting contact (friction is the preset's 0.5).
+pub const ACCURATE_RESTITUTION: f64 = 0.2;
+
+/// The `--accurate` preset (the soft step, friction 0.5, sleeping) with restitution 0.2.
+pub fn accurate_settings() -> Settings {
+    Settings {
+        restitution: ACCURATE_RESTITUTION,
+        ..Settings::accurate()
     }
 }
 
@@ -81,12 +145,16 @@ pub const POSE_UPDATE: &str = "pose_update";
 #[derive(Debug, Clone, Serialize)]
 pub struct Measurement {
     pub median_ms_per_step: f64,
+    /// Median over the last fifth of the measured steps, where sleeping shows.
+    pub late_median_ms_per_step: f64,
     /// Mean ms per step of each stage (by [`Stage`] name, plus [`POSE_UPDATE`]).
     pub mean_stage_ms: BTreeMap<String, f64>,
     pub constraint_visits_per_step: f64,
     pub contacts_per_step: f64,
     pub peak_mib: f64,
     pub steps_measured: usize,
+    /// Bodies asleep after the last step.
+    pub asleep_at_end: usize,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -94,10 +162,13 @@ pub struct ScaleReport {
     pub cores: usize,
     pub steps: usize,
     pub rapier: &'static str,
+    pub accurate_settings: String,
     /// "scene-N" -> variant name -> measurement.
     pub results: BTreeMap<String, BTreeMap<String, Measurement>>,
-    /// coursework / tumble_1_thread and coursework / tumble_all_cores, per scene and size.
+    /// Ratios of medians per scene and size (`a_over_b` = a's ms / b's ms).
     pub speedups: BTreeMap<String, BTreeMap<String, f64>>,
+    /// "scene-N variant: why" for each run left out.
+    pub left_out: Vec<String>,
     #[serde(skip)]
     pub csv: PathBuf,
     #[serde(skip)]
@@ -106,18 +177,26 @@ pub struct ScaleReport {
 
 fn settings_for(variant: Variant) -> Settings {
     let mut settings = Settings::default();
-    if variant == Variant::Coursework {
-        settings.broad_phase = BroadPhase::AllPairs;
-        settings.constraint_schedule = ConstraintSchedule::Sweep;
-    } else {
-        settings.constraint_schedule = ConstraintSchedule::Sparse;
+    match variant {
+        Variant::Coursework => {
+            settings.broad_phase = BroadPhase::AllPairs;
+            settings.constraint_schedule = ConstraintSchedule::Sweep;
+        }
+        Variant::SingleThread | Variant::AllCores => {
+            settings.constraint_schedule = ConstraintSchedule::Sparse;
+        }
+        Variant::AccurateSingleThread | Variant::AccurateAllCores | Variant::RapierAccurate => {
+            settings = accurate_settings();
+        }
+        Variant::Rapier => settings.friction = 0.0,
     }
     settings
 }
 
 fn generated(scene: &str, n: usize, settings: Settings) -> anyhow::Result<World> {
-    generate::by_name(scene, n, settings)
-        .ok_or_else(|| anyhow::anyhow!("unknown generated scene '{scene}' (sparse, pile, chain)"))
+    generate::by_name(scene, n, settings).ok_or_else(|| {
+        anyhow::anyhow!("unknown generated scene '{scene}' (sparse, pile, chain, scatter)")
+    })
 }
 
 /// Wall seconds of each step, after `warmup` steps, until `steps` or the time cap. `step(measured)`
@@ -147,18 +226,23 @@ fn median_ms(times: &[f64]) -> f64 {
     1000.0 * sorted.get(sorted.len() / 2).copied().unwrap_or(0.0)
 }
 
+/// The median over the last fifth of `times`.
+fn late_median_ms(times: &[f64]) -> f64 {
+    median_ms(&times[times.len() - times.len().div_ceil(5)..])
+}
+
 fn measure(
     scene: &str,
     n: usize,
     variant: Variant,
     config: &ScaleConfig,
 ) -> anyhow::Result<Measurement> {
-    if variant == Variant::Rapier {
-        return measure_rapier(scene, n, config);
+    if variant.is_rapier() {
+        return measure_rapier(scene, n, variant, config);
     }
-    let threads = match variant {
-        Variant::SingleThread => 1,
-        _ => rayon::current_num_threads().max(1),
+    let threads = match variant.single_thread() {
+        true => 1,
+        false => rayon::current_num_threads().max(1),
     };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
@@ -207,23 +291,27 @@ fn measure_tumble(
     }
     Ok(Measurement {
         median_ms_per_step: median_ms(&times),
+        late_median_ms_per_step: late_median_ms(&times),
         mean_stage_ms: stages,
         constraint_visits_per_step: visits as f64 / taken,
         contacts_per_step: contacts as f64 / taken,
         peak_mib: (alloc::peak().saturating_sub(baseline)) as f64 / (1024.0 * 1024.0),
         steps_measured: times.len(),
+        asleep_at_end: world.bodies.iter().filter(|b| b.asleep).count(),
     })
 }
 
 #[cfg(feature = "compare-rapier")]
-fn measure_rapier(scene: &str, n: usize, config: &ScaleConfig) -> anyhow::Result<Measurement> {
+fn measure_rapier(
+    scene: &str,
+    n: usize,
+    variant: Variant,
+    config: &ScaleConfig,
+) -> anyhow::Result<Measurement> {
     let baseline = alloc::reset_peak();
-    let settings = Settings {
-        friction: 0.0,
-        ..settings_for(Variant::Rapier)
-    };
-    let world = generated(scene, n, settings)?;
-    let mut rapier = super::rapier::RapierScene::from_world(&world, false);
+    let world = generated(scene, n, settings_for(variant))?;
+    let sleeping = variant == Variant::RapierAccurate;
+    let mut rapier = super::rapier::RapierScene::from_world(&world, sleeping);
     drop(world);
     let times = time_steps(config, |_| rapier.step());
     let total: f64 = times.iter().sum();
@@ -232,45 +320,52 @@ fn measure_rapier(scene: &str, n: usize, config: &ScaleConfig) -> anyhow::Result
         "total".to_string(),
         1000.0 * total / times.len().max(1) as f64,
     );
+    let peak_mib = (alloc::peak().saturating_sub(baseline)) as f64 / (1024.0 * 1024.0);
+    let asleep_at_end = rapier.asleep();
     Ok(Measurement {
         median_ms_per_step: median_ms(&times),
+        late_median_ms_per_step: late_median_ms(&times),
         mean_stage_ms: stages,
         constraint_visits_per_step: 0.0,
         contacts_per_step: 0.0,
-        peak_mib: (alloc::peak().saturating_sub(baseline)) as f64 / (1024.0 * 1024.0),
+        peak_mib,
         steps_measured: times.len(),
+        asleep_at_end,
     })
 }
 
 #[cfg(not(feature = "compare-rapier"))]
-fn measure_rapier(_: &str, _: usize, _: &ScaleConfig) -> anyhow::Result<Measurement> {
+fn measure_rapier(_: &str, _: usize, _: Variant, _: &ScaleConfig) -> anyhow::Result<Measurement> {
     anyhow::bail!("built without Rapier")
 }
 
-/// (scene family, N, variant) of every run.
-fn jobs(config: &ScaleConfig) -> Vec<(String, usize, Variant)> {
-    let mut jobs = Vec::new();
+/// (scene family, N, variant) of every run, and "scene-N variant: why" for those left out.
+fn jobs(config: &ScaleConfig) -> (Vec<(String, usize, Variant)>, Vec<String>) {
+    let (mut jobs, mut left_out) = (Vec::new(), Vec::new());
     for scene in &config.scenes {
-        let mut sizes = config.sizes.clone();
+        let mut sizes = match scene.as_str() {
+            "scatter" => config.scatter_sizes.clone(),
+            _ => config.sizes.clone(),
+        };
         if config.huge && scene == "sparse" {
             sizes.push(100_000);
         }
         for &n in &sizes {
-            for v in Variant::ALL {
-                // Rapier needs about 12 GB at N = 100,000 (measured): left out there.
-                if v != Variant::Rapier || (cfg!(feature = "compare-rapier") && n <= 10_000) {
-                    jobs.push((scene.clone(), n, v));
+            for &v in &config.variants {
+                match v.left_out(scene, n) {
+                    Some(why) => left_out.push(format!("{scene}-{n} {}: {why}", v.name())),
+                    None => jobs.push((scene.clone(), n, v)),
                 }
             }
         }
     }
-    jobs
+    (jobs, left_out)
 }
 
 /// Measures every job, then writes `scale.csv` and one plot per scene family.
 pub fn run(config: &ScaleConfig, progress: &dyn Progress) -> anyhow::Result<ScaleReport> {
     let config = &config.effective();
-    let jobs = jobs(config);
+    let (jobs, left_out) = jobs(config);
     progress.start(jobs.len() as u64, "bench scale");
     let mut results: BTreeMap<String, BTreeMap<String, Measurement>> = BTreeMap::new();
     for (k, (scene, n, v)) in jobs.iter().enumerate() {
@@ -291,12 +386,27 @@ pub fn run(config: &ScaleConfig, progress: &dyn Progress) -> anyhow::Result<Scal
         cores: rayon::current_num_threads(),
         steps: config.steps,
         rapier: rapier_note(),
+        accurate_settings: format!(
+            "the --accurate preset (soft step, 4 substeps, friction 0.5, sleeping) with restitution {ACCURATE_RESTITUTION}"
+        ),
         speedups: speedups(&results),
         results,
+        left_out,
         csv,
         plots,
     })
 }
+
+/// The ratios the targets read, per scene and size: `a_over_b` = a's median / b's.
+const RATIOS: [(&str, &str); 7] = [
+    ("coursework", "tumble_1_thread"),
+    ("coursework", "tumble_all_cores"),
+    ("coursework", "rapier"),
+    ("rapier", "tumble_1_thread"),
+    ("accurate_1_thread", "accurate_all_cores"),
+    ("rapier", "accurate_all_cores"),
+    ("rapier_accurate", "accurate_all_cores"),
+];
 
 fn speedups(
     results: &BTreeMap<String, BTreeMap<String, Measurement>>,
@@ -304,17 +414,11 @@ fn speedups(
     let mut speedups: BTreeMap<String, BTreeMap<String, f64>> = BTreeMap::new();
     for (key, by_variant) in results {
         let entry = speedups.entry(key.clone()).or_default();
-        let ratio = |a: &str, b: &str| {
-            let (a, b) = (by_variant.get(a)?, by_variant.get(b)?);
-            Some(a.median_ms_per_step / b.median_ms_per_step.max(1e-9))
-        };
-        for v in ["tumble_1_thread", "tumble_all_cores", "rapier"] {
-            if let Some(r) = ratio("coursework", v) {
-                entry.insert(format!("coursework_over_{v}"), r);
+        for (a, b) in RATIOS {
+            if let (Some(a_ms), Some(b_ms)) = (by_variant.get(a), by_variant.get(b)) {
+                let ratio = a_ms.median_ms_per_step / b_ms.median_ms_per_step.max(1e-9);
+                entry.insert(format!("{a}_over_{b}"), ratio);
             }
-        }
-        if let Some(r) = ratio("rapier", "tumble_1_thread") {
-            entry.insert("rapier_over_tumble_1_thread".into(), r);
         }
     }
     speedups
@@ -328,7 +432,7 @@ fn csv_text(results: &BTreeMap<String, BTreeMap<String, Measurement>>) -> String
         .chain([POSE_UPDATE])
         .collect();
     let mut csv = format!(
-        "scene,n,variant,median_ms_per_step,{},visits_per_step,contacts_per_step,peak_mib,steps_measured\n",
+        "scene,n,variant,median_ms_per_step,late_median_ms_per_step,{},visits_per_step,contacts_per_step,peak_mib,steps_measured,asleep_at_end\n",
         stage_names
             .iter()
             .map(|s| format!("{s}_ms"))
@@ -343,13 +447,15 @@ fn csv_text(results: &BTreeMap<String, BTreeMap<String, Measurement>>) -> String
                 .map(|s| format!("{:.5}", m.mean_stage_ms.get(*s).copied().unwrap_or(0.0)))
                 .collect();
             csv.push_str(&format!(
-                "{scene},{n},{v},{:.5},{},{:.1},{:.1},{:.2},{}\n",
+                "{scene},{n},{v},{:.5},{:.5},{},{:.1},{:.1},{:.2},{},{}\n",
                 m.median_ms_per_step,
+                m.late_median_ms_per_step,
                 stages.join(","),
                 m.constraint_visits_per_step,
                 m.contacts_per_step,
                 m.peak_mib,
-                m.steps_measured
+                m.steps_measured,
+                m.asleep_at_end
             ));
         }
     }
@@ -381,6 +487,7 @@ fn write_plots(
                     pareto: false,
                 }
             })
+            .filter(|series| !series.points.is_empty())
             .collect::<Vec<_>>();
         let path = out.join(format!("scale-{scene}.svg"));
         log_log_plot(
@@ -397,7 +504,7 @@ fn write_plots(
 
 fn rapier_note() -> &'static str {
     if cfg!(feature = "compare-rapier") {
-        "Rapier 0.36 (rapier3d-f64, single-threaded build): same hulls, densities, dt, gravity and restitution; friction 0; sleeping off; chain links as rope joints at the upper bound."
+        "Rapier 0.36 (rapier3d-f64, single-threaded build): same hulls, densities, dt, gravity; chain links as rope joints at the upper bound. `rapier`: restitution 1, friction 0, sleeping off (the coursework's physics); `rapier_accurate`: the accurate variants' restitution 0.2 and friction 0.5, sleeping on."
     } else {
         "Rapier comparison not built in: run `cargo run --release --features compare-rapier -- bench scale` to add it."
     }

@@ -6,18 +6,27 @@ use clap::Args;
 use std::path::PathBuf;
 use tumble::Settings;
 use tumble::bench::accuracy::{AccuracyConfig, AccuracyReport, primary_metric_of};
-use tumble::bench::scale::{ScaleConfig, ScaleReport};
+use tumble::bench::scale::{ScaleConfig, ScaleReport, Variant};
 use tumble::bench::scenarios::Scenario;
 use tumble::bench::soak::SoakResult;
 
 #[derive(Debug, Args)]
 pub struct ScaleArgs {
-    /// Scenes to run (sparse, pile, chain).
-    #[arg(long, value_delimiter = ',', default_values_t = ["sparse".to_string(), "pile".to_string(), "chain".to_string()])]
+    /// Scene families to run: sparse (the coursework's comparison: more bodies in the same
+    /// square), pile, chain, scatter (constant density: the area grows with N).
+    #[arg(long, value_delimiter = ',', default_values_t = ["sparse".to_string(), "pile".to_string(), "chain".to_string(), "scatter".to_string()])]
     pub scenes: Vec<String>,
-    /// Body counts.
+    /// Body counts of sparse, pile and chain.
     #[arg(long, value_delimiter = ',', default_values_t = [100usize, 1000, 10000])]
     pub sizes: Vec<usize>,
+    /// Body counts of scatter.
+    #[arg(long, value_delimiter = ',', default_values_t = [1000usize, 10000, 100000])]
+    pub scatter_sizes: Vec<usize>,
+    /// Variants to run (default: all): coursework, tumble_1_thread, tumble_all_cores,
+    /// accurate_1_thread, accurate_all_cores, rapier, rapier_accurate (the last two need
+    /// `--features compare-rapier`).
+    #[arg(long, value_delimiter = ',', value_parser = parse_variant)]
+    pub variants: Vec<Variant>,
     /// Also run sparse-100000.
     #[arg(long)]
     pub huge: bool,
@@ -76,10 +85,28 @@ pub struct SoakArgs {
     pub json: bool,
 }
 
+fn parse_variant(name: &str) -> Result<Variant, String> {
+    Variant::from_name(name).ok_or_else(|| {
+        let names: Vec<&str> = Variant::ALL.iter().map(|v| v.name()).collect();
+        format!("unknown variant '{name}' (one of {})", names.join(", "))
+    })
+}
+
 pub fn scale(args: &ScaleArgs) -> anyhow::Result<()> {
+    for scene in &args.scenes {
+        if !["sparse", "pile", "chain", "scatter"].contains(&scene.as_str()) {
+            anyhow::bail!("unknown scene family '{scene}' (sparse, pile, chain, scatter)");
+        }
+    }
+    let variants = match args.variants.is_empty() {
+        true => Variant::ALL.to_vec(),
+        false => args.variants.clone(),
+    };
     let config = ScaleConfig {
         scenes: args.scenes.clone(),
         sizes: args.sizes.clone(),
+        scatter_sizes: args.scatter_sizes.clone(),
+        variants,
         huge: args.huge,
         steps: args.steps,
         warmup: args.warmup,
@@ -98,39 +125,52 @@ pub fn scale(args: &ScaleArgs) -> anyhow::Result<()> {
 
 fn print_scale(report: &ScaleReport) {
     println!(
-        "{:<14} {:<18} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}",
+        "{:<14} {:<18} {:>9} {:>9} {:>8} {:>8} {:>8} {:>8} {:>8} {:>7} {:>8} {:>7}",
         "scene",
         "variant",
         "ms/step",
+        "late",
         "broad",
         "narrow",
-        "resolve",
+        "solve",
         "constr",
         "integr",
         "visits",
-        "peakMiB"
+        "peakMiB",
+        "asleep"
     );
     for (key, by_variant) in &report.results {
         for (v, m) in by_variant {
             let s = |k: &str| m.mean_stage_ms.get(k).copied().unwrap_or(0.0);
             println!(
-                "{key:<14} {v:<18} {:>10.4} {:>9.4} {:>9.4} {:>9.4} {:>9.4} {:>9.4} {:>9.0} {:>9.2}",
+                "{key:<14} {v:<18} {:>9.3} {:>9.3} {:>8.3} {:>8.3} {:>8.3} {:>8.3} {:>8.3} {:>7.0} {:>8.1} {:>7}",
                 m.median_ms_per_step,
+                m.late_median_ms_per_step,
                 s("broad_phase"),
                 s("narrow_phase"),
-                s("contact_resolution") + s("ground"),
+                s("contact_resolution") + s("ground") + s("solve"),
                 s("constraints"),
                 s("integrate"),
                 m.constraint_visits_per_step,
-                m.peak_mib
+                m.peak_mib,
+                m.asleep_at_end
             );
         }
         if let Some(sp) = report.speedups.get(key) {
-            let parts: Vec<String> = sp.iter().map(|(k, v)| format!("{k} = {v:.1}x")).collect();
-            println!("{:<14} {}", "", parts.join(", "));
+            let parts: Vec<String> = sp.iter().map(|(k, v)| format!("{k} = {v:.2}x")).collect();
+            if !parts.is_empty() {
+                println!("{:<14} {}", "", parts.join(", "));
+            }
         }
     }
-    println!("\n{}", report.rapier);
+    if !report.left_out.is_empty() {
+        println!("\nleft out:");
+        for why in &report.left_out {
+            println!("  {why}");
+        }
+    }
+    println!("\naccurate variants: {}", report.accurate_settings);
+    println!("{}", report.rapier);
     println!(
         "wrote {} and {}",
         report.csv.display(),

@@ -110,7 +110,7 @@ pub struct Shared<'a, T> {
 // disjointness (see the type's documentation).
 unsafe impl<T: Send> Sync for Shared<'_, T> {}
 
-impl<'a, T: Copy> Shared<'a, T> {
+impl<'a, T> Shared<'a, T> {
     pub fn new(slice: &'a mut [T]) -> Self {
         Self {
             ptr: slice.as_mut_ptr(),
@@ -118,7 +118,9 @@ impl<'a, T: Copy> Shared<'a, T> {
             _borrow: PhantomData,
         }
     }
+}
 
+impl<T: Copy> Shared<'_, T> {
     /// A copy of element `i`.
     ///
     /// # Safety
@@ -138,7 +140,9 @@ impl<'a, T: Copy> Shared<'a, T> {
         // SAFETY: in bounds; exclusive by the caller's contract.
         unsafe { self.ptr.add(i).write(value) }
     }
+}
 
+impl<T> Shared<'_, T> {
     /// Element `i`, mutably.
     ///
     /// # Safety
@@ -160,6 +164,34 @@ impl<'a, T: Copy> Shared<'a, T> {
         // SAFETY: in bounds; exclusive by the caller's contract.
         unsafe { std::slice::from_raw_parts_mut(self.ptr.add(range.start), range.len()) }
     }
+}
+
+/// Runs `f(i, &mut a[i])` for every index in `indices` (strictly increasing), on all threads:
+/// each element is touched by one call only, so the result does not depend on the schedule.
+pub fn for_each_indexed<A: Send>(indices: &[usize], a: &mut [A], f: impl Fn(usize, &mut A) + Sync) {
+    assert!(
+        indices.windows(2).all(|w| w[0] < w[1]),
+        "indices not increasing"
+    );
+    assert!(indices.last().is_none_or(|&last| last < a.len()));
+    let a = Shared::new(a);
+    indices.par_iter().with_min_len(256).for_each(|&i| {
+        // SAFETY: the indices are distinct, so each element has one user.
+        f(i, unsafe { a.get_mut(i) });
+    });
+}
+
+/// [`for_each_indexed`] over two arrays: `f(i, &mut a[i], &mut b[i])`.
+pub fn for_each_indexed2<A: Send, B: Send>(
+    indices: &[usize],
+    a: &mut [A],
+    b: &mut [B],
+    f: impl Fn(usize, &mut A, &mut B) + Sync,
+) {
+    assert!(indices.last().is_none_or(|&last| last < b.len()));
+    let b = Shared::new(b);
+    // SAFETY: `for_each_indexed` calls once per distinct index.
+    for_each_indexed(indices, a, |i, x| f(i, x, unsafe { b.get_mut(i) }));
 }
 
 /// Runs `solve` on a constraint's two solver bodies: the moving ones in place, the others

@@ -27,7 +27,7 @@ use super::integrate::integrate_pose;
 use super::shape::Shape;
 use super::stats::{Stage, StepStats, Stopwatch};
 use super::step_context::StepContext;
-use constraint_graph::Colours;
+use constraint_graph::{Colours, for_each_indexed, for_each_indexed2};
 use contact_solver::{
     ContactCache, ContactConstraint, ContactParams, ContactPoint, HeldImpulses, Pass,
 };
@@ -403,16 +403,24 @@ impl SoftStep {
         work.start.resize(n, (DVec3::ZERO, DQuat::IDENTITY));
         work.start_energy.resize(n, 0.0);
         let g = ctx.settings.gravity;
-        for &i in &work.solved {
+        for_each_indexed2(
+            &work.solved,
+            &mut work.bodies,
+            &mut work.start,
+            |i, sb, start| {
+                let b = &bodies[i];
+                *sb = SolverBody::new(b);
+                *start = (b.position, b.orientation);
+            },
+        );
+        let energy = |i: usize, e: &mut f64| {
             let b = &bodies[i];
-            work.bodies[i] = SolverBody::new(b);
-            work.start[i] = (b.position, b.orientation);
-            work.start_energy[i] = if b.is_awake() {
-                restitution::energy(b, b.linear_velocity, b.angular_velocity, g)
-            } else {
-                0.0
+            *e = match b.is_awake() {
+                true => restitution::energy(b, b.linear_velocity, b.angular_velocity, g),
+                false => 0.0,
             };
-        }
+        };
+        for_each_indexed(&work.solved, &mut work.start_energy, energy);
         for (start, (b, _)) in work
             .start
             .iter_mut()
@@ -537,10 +545,10 @@ impl SoftStep {
             &w.start_energy,
             &rule,
         );
-        for &i in &w.moving {
-            bodies[i].linear_velocity = w.bodies[i].linear_velocity;
-            bodies[i].angular_velocity = w.bodies[i].angular_velocity;
-        }
+        for_each_indexed2(&w.moving, bodies, &mut w.bodies, |_, body, sb| {
+            body.linear_velocity = sb.linear_velocity;
+            body.angular_velocity = sb.angular_velocity;
+        });
         if ctx.settings.sleep {
             let touching = sleep::touching_pairs(&w.manifolds);
             sleep::settle(
@@ -630,17 +638,18 @@ fn integrate_free(
 impl Workspace {
     /// Adds `dv` to the velocity of every body the substeps integrate.
     fn kick(&mut self, dv: DVec3) {
-        for &i in &self.moving {
-            self.bodies[i].linear_velocity += dv;
-        }
+        for_each_indexed(&self.moving, &mut self.bodies, |_, sb| {
+            sb.linear_velocity += dv;
+        });
     }
 
     /// Poses from the solved velocities (by the world's rotation integrator), and each body's
     /// displacement since the step began for the contacts' separations.
     fn integrate_positions(&mut self, ctx: &StepContext, bodies: &mut [RigidBody], h: f64) {
         let integrator = ctx.settings.rotation_integrator;
-        for &i in &self.moving {
-            let (body, sb, (p0, q0)) = (&mut bodies[i], &mut self.bodies[i], self.start[i]);
+        let start = &self.start;
+        for_each_indexed2(&self.moving, bodies, &mut self.bodies, |i, body, sb| {
+            let (p0, q0) = start[i];
             body.linear_velocity = sb.linear_velocity;
             body.angular_velocity = sb.angular_velocity;
             integrate_pose(body, integrator, h, false);
@@ -648,14 +657,15 @@ impl Workspace {
             sb.angular_velocity = body.angular_velocity;
             sb.delta_position = body.position - p0;
             sb.delta_rotation = manifold::delta_rotation(q0, body.orientation);
-        }
+        });
     }
 
-    fn update_deltas(&mut self, bodies: &[RigidBody]) {
-        for &i in &self.moving {
-            let (body, (p0, q0)) = (&bodies[i], self.start[i]);
-            self.bodies[i].delta_position = body.position - p0;
-            self.bodies[i].delta_rotation = manifold::delta_rotation(q0, body.orientation);
-        }
+    fn update_deltas(&mut self, bodies: &mut [RigidBody]) {
+        let start = &self.start;
+        for_each_indexed2(&self.moving, bodies, &mut self.bodies, |i, body, sb| {
+            let (p0, q0) = start[i];
+            sb.delta_position = body.position - p0;
+            sb.delta_rotation = manifold::delta_rotation(q0, body.orientation);
+        });
     }
 }
