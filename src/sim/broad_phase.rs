@@ -70,16 +70,18 @@ impl BroadPhase {
         &mut self,
         bodies: &[RigidBody],
         shapes: &[Shape],
-        keep: impl Fn(usize, usize) -> bool,
+        keep: impl Fn(usize, usize) -> bool + Sync,
         tested: &mut usize,
     ) -> PairQueue {
         let active: Vec<bool> = bodies.iter().map(|b| !b.quarantined).collect();
         // The soft step's grid is rebuilt from scratch after this one.
         self.placed.clear();
-        self.proxies = (0..bodies.len())
+        let proxies = (0..bodies.len())
+            .into_par_iter()
             .map(|i| self.proxy_of(i, &bodies[i], shapes))
             .collect();
-        self.grid.rebuild(&self.proxies, &active);
+        self.proxies = proxies;
+        self.grid.sync(&self.proxies, &active);
         PairQueue::new(self.grid.overlapping_pairs(&self.proxies, keep, tested))
     }
 

@@ -48,7 +48,8 @@ impl CellList {
             .reduce(|| Aabb::EMPTY, |a, b| a.union(&b));
         let span = ((bounds.max - bounds.min) * inv).floor() + 1.0;
         let empty = bounds == Aabb::EMPTY;
-        if !empty && !(span.is_finite() && span.element_product() <= max_cells as f64) {
+        let fits = span.is_finite() && span.element_product() <= max_cells as f64;
+        if !empty && !fits {
             return false;
         }
         self.origin = bounds.min;

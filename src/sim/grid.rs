@@ -46,6 +46,8 @@ pub struct Grid {
     /// and bodies not in the grid.
     ranges: Vec<Option<([i64; 3], [i64; 3])>>,
     oversized: Vec<u32>,
+    /// Whether each body is in the grid (in cells or oversized).
+    present: Vec<bool>,
     /// Keys of the cells holding two bodies or more.
     crowded: std::collections::HashSet<u64, BuildHasherDefault<CellHasher>>,
     stamp: Vec<u32>,
@@ -119,11 +121,35 @@ impl Grid {
         self.oversized.clear();
         self.ranges.clear();
         self.ranges.resize(aabbs.len(), None);
+        self.present.clear();
+        self.present.resize(aabbs.len(), false);
         self.stamp.resize(aabbs.len(), 0);
         for (index, aabb) in aabbs.iter().enumerate() {
             if active[index] {
                 self.insert(index, aabb);
             }
+        }
+    }
+
+    /// Brings the grid to `aabbs` (the `active` bodies only) one body at a time: a body still in
+    /// the same cells costs one range computation, so a scene that mostly stays put is cheap
+    /// where [`Grid::rebuild`] would hash every body again. The grid holds the same bodies in
+    /// the same cells either way (the lists' order may differ; every query sorts).
+    pub fn sync(&mut self, aabbs: &[Aabb], active: &[bool]) {
+        if self.present.len() != aabbs.len() {
+            return self.rebuild(aabbs, active);
+        }
+        for (index, aabb) in aabbs.iter().enumerate() {
+            if active[index] {
+                self.update(index, aabb);
+            } else if self.present[index] {
+                self.take_out(index);
+            }
+        }
+        // Cells emptied by bodies that moved on are dropped once they outnumber the bodies,
+        // so long runs do not grow the map.
+        if self.cells.len() > 8 * aabbs.len() + 1024 {
+            self.cells.retain(|_, list| !list.is_empty());
         }
     }
 
@@ -143,9 +169,11 @@ impl Grid {
             None => self.oversized.retain(|&b| b as usize != index),
         }
         self.ranges[index] = None;
+        self.present[index] = false;
     }
 
     fn insert(&mut self, index: usize, aabb: &Aabb) {
+        self.present[index] = true;
         match self.range(aabb) {
             Some(range) => {
                 self.ranges[index] = Some(range);
@@ -169,45 +197,23 @@ impl Grid {
         if new_range.is_some() && new_range == old_range {
             return;
         }
-        self.take_out(index);
+        if self.present[index] {
+            self.take_out(index);
+        }
         self.insert(index, aabb);
     }
 
     /// Every pair (i < j) of inserted bodies whose boxes overlap and for which `keep(i, j)`,
-    /// sorted, each once. `tested` counts the box comparisons made.
+    /// sorted, each once (on all threads). `tested` counts the box comparisons made.
     pub fn overlapping_pairs(
         &self,
         aabbs: &[Aabb],
-        keep: impl Fn(usize, usize) -> bool,
+        keep: impl Fn(usize, usize) -> bool + Sync,
         tested: &mut usize,
     ) -> Vec<(u32, u32)> {
-        let mut pairs = Vec::new();
-        let mut consider = |a: u32, b: u32, pairs: &mut Vec<(u32, u32)>| {
-            let (i, j) = if a < b { (a, b) } else { (b, a) };
-            *tested += 1;
-            if aabbs[i as usize].overlaps(&aabbs[j as usize]) && keep(i as usize, j as usize) {
-                pairs.push((i, j));
-            }
-        };
-        for list in self.cells.values() {
-            for (k, &a) in list.iter().enumerate() {
-                for &b in &list[k + 1..] {
-                    consider(a, b, &mut pairs);
-                }
-            }
-        }
-        for (k, &a) in self.oversized.iter().enumerate() {
-            for (b, range) in self.ranges.iter().enumerate() {
-                if range.is_some() {
-                    consider(a, b as u32, &mut pairs);
-                }
-            }
-            for &b in &self.oversized[k + 1..] {
-                consider(a, b, &mut pairs);
-            }
-        }
-        pairs.sort_unstable();
-        pairs.dedup();
+        let everyone = vec![true; aabbs.len()];
+        let (pairs, count) = self.pairs_with_awake(&everyone, aabbs, keep);
+        *tested += count;
         pairs
     }
 

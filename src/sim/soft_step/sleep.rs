@@ -100,13 +100,12 @@ pub fn settle(
         let root = islands.find(i);
         islands.least[root] = islands.least[root].min(bodies[i].sleep_time);
     }
-    for i in 0..bodies.len() {
-        if !bodies[i].is_awake() {
+    for (i, b) in bodies.iter_mut().enumerate() {
+        if !b.is_awake() {
             continue;
         }
         let root = islands.find(i);
         if islands.least[root] >= TIME_TO_SLEEP {
-            let b = &mut bodies[i];
             b.asleep = true;
             b.linear_velocity = glam::DVec3::ZERO;
             b.angular_velocity = glam::DVec3::ZERO;
