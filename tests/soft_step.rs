@@ -285,36 +285,7 @@ fn a_resting_stack_sleeps_and_a_dropped_box_wakes_it() {
 #[test]
 fn a_pendulum_never_sleeps() {
     for dt in [0.04, 0.01] {
-        let s = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(2.0, 1.0, 1.5))).unwrap();
-        let centre = s.rest_vertices.len() - 1;
-        let pivot = DVec3::new(0.0, 60.0, 0.0);
-        let (length, theta0): (f64, f64) = (20.0, 0.2);
-        let anchor = RigidBody::on_shape(&s, 0, 100.0, true, pivot, DQuat::IDENTITY);
-        let bob = RigidBody::on_shape(
-            &s,
-            0,
-            100.0,
-            false,
-            pivot + length * DVec3::new(theta0.sin(), -theta0.cos(), 0.0),
-            DQuat::IDENTITY,
-        );
-        let bodies = vec![anchor, bob];
-        let constraints = tumble::sim::DistanceConstraint::lower_and_upper(
-            &bodies,
-            std::slice::from_ref(&s),
-            (0, centre),
-            (1, centre),
-            1.0,
-            1.0,
-        )
-        .to_vec();
-        let mut world = World::new(
-            vec![s],
-            vec!["box".into()],
-            bodies,
-            constraints,
-            accurate(dt),
-        );
+        let mut world = scenarios::pendulum_world(accurate(dt));
         assert!(world.settings.sleep);
         let mut apexes = 0;
         let mut previous_vx = 0.0;

@@ -416,16 +416,16 @@ fn bounce(run: &Run) -> Measured {
     )
 }
 
-/// A box hanging from a fixed box by a rigid distance constraint (lower = upper = 1) attached at
-/// its centre of mass: a simple pendulum of length L. Period against the closed form
-/// `2 pi sqrt(L/g) (1 + theta0^2/16 + 11 theta0^4/3072)`, amplitude against its initial value.
-fn pendulum(run: &Run) -> Measured {
-    let settings = run.settings.clone();
+/// The pendulum's pivot, rod length and initial angle (rad).
+pub const PENDULUM: (DVec3, f64, f64) = (DVec3::new(0.0, 60.0, 0.0), 20.0, 0.2);
+
+/// A box hanging from a fixed box (at [`PENDULUM`]'s pivot) by a rigid distance constraint
+/// (lower = upper = 1) attached at its centre of mass, let go at the initial angle.
+pub fn pendulum_world(settings: Settings) -> World {
+    let (pivot, length, theta0) = PENDULUM;
     let s = shape(&assets::cuboid(DVec3::new(2.0, 1.0, 1.5)));
     let centre = s.rest_vertices.len() - 1; // the fan's apex: the box's centre of mass
     assert!(s.rest_vertices[centre].length() < 1e-12);
-    let (length, theta0): (f64, f64) = (20.0, 0.2);
-    let pivot = DVec3::new(0.0, 60.0, 0.0);
     let anchor = RigidBody::on_shape(&s, 0, 100.0, true, pivot, DQuat::IDENTITY);
     let bob = RigidBody::on_shape(
         &s,
@@ -445,15 +445,22 @@ fn pendulum(run: &Run) -> Measured {
         1.0,
     )
     .to_vec();
-    let [anchor, bob] = bodies;
-    let g = settings.gravity.length();
-    let mut world = World::new(
+    World::new(
         vec![s],
         vec!["box".into()],
-        vec![anchor, bob],
+        bodies.to_vec(),
         constraints,
         settings,
-    );
+    )
+}
+
+/// [`pendulum_world`]: a simple pendulum of length L. Period against the closed form
+/// `2 pi sqrt(L/g) (1 + theta0^2/16 + 11 theta0^4/3072)`, amplitude against its initial value.
+fn pendulum(run: &Run) -> Measured {
+    let settings = run.settings.clone();
+    let (pivot, length, theta0) = PENDULUM;
+    let g = settings.gravity.length();
+    let mut world = pendulum_world(settings);
     let mut crossings = Vec::new();
     let mut previous: Option<(f64, f64)> = None;
     let mut amplitude_late: f64 = 0.0;

@@ -460,6 +460,24 @@ impl HeldImpulses {
     }
 }
 
+/// Runs `f` on every contact constraint with its points and its two solver bodies, colour by
+/// colour (see [`Colours::for_each`]): the one place the colouring's disjointness is relied on.
+fn for_each_contact(
+    colours: &Colours,
+    constraints: &mut [ContactConstraint],
+    points: &mut [ContactPoint],
+    bodies: &mut [SolverBody],
+    f: impl Fn(&mut ContactConstraint, &mut [ContactPoint], &mut SolverBody, &mut SolverBody) + Sync,
+) {
+    let (bodies, points) = (Shared::new(bodies), Shared::new(points));
+    colours.for_each(constraints, |c| {
+        // SAFETY: within a colour a constraint's points and moving bodies are its own.
+        let contact_points = unsafe { points.slice(c.first..c.first + c.count) };
+        let pair = (c.body1, c.body2);
+        unsafe { with_pair(&bodies, pair, |b1, b2| f(c, contact_points, b1, b2)) }
+    });
+}
+
 /// Applies the accumulated impulses (warm starting), once per substep.
 pub fn warm_start(
     colours: &Colours,
@@ -467,23 +485,15 @@ pub fn warm_start(
     points: &mut [ContactPoint],
     bodies: &mut [SolverBody],
 ) {
-    let (bodies, points) = (Shared::new(bodies), Shared::new(points));
-    colours.for_each(constraints, |c| {
-        // SAFETY: within a colour a constraint's points and moving bodies are its own.
-        let contact_points = unsafe { points.slice(c.first..c.first + c.count) };
-        let pair = (c.body1, c.body2);
-        unsafe {
-            with_pair(&bodies, pair, |b1, b2| {
-                for p in contact_points.iter() {
-                    p.along_normal.apply(c.normal, p.normal_impulse, b1, b2);
-                }
-                let f = &c.friction;
-                for k in 0..2 {
-                    f.along_tangents[k].apply(f.tangents[k], f.tangent_impulse[k], b1, b2);
-                }
-                f.apply_twist(f.twist_impulse, b1, b2);
-            })
+    for_each_contact(colours, constraints, points, bodies, |c, points, b1, b2| {
+        for p in points.iter() {
+            p.along_normal.apply(c.normal, p.normal_impulse, b1, b2);
         }
+        let f = &c.friction;
+        for k in 0..2 {
+            f.along_tangents[k].apply(f.tangents[k], f.tangent_impulse[k], b1, b2);
+        }
+        f.apply_twist(f.twist_impulse, b1, b2);
     });
 }
 
@@ -498,18 +508,10 @@ pub fn solve(
     pass: Pass,
     max_push: f64,
 ) {
-    let (bodies, points) = (Shared::new(bodies), Shared::new(points));
-    colours.for_each(constraints, |c| {
-        // SAFETY: within a colour a constraint's points and moving bodies are its own.
-        let contact_points = unsafe { points.slice(c.first..c.first + c.count) };
-        let pair = (c.body1, c.body2);
-        unsafe {
-            with_pair(&bodies, pair, |b1, b2| {
-                solve_normals(c, contact_points, (b1, b2), inv_h, pass, max_push);
-                let total: f64 = contact_points.iter().map(|p| p.normal_impulse).sum();
-                c.friction.solve(c.normal, total, b1, b2);
-            })
-        }
+    for_each_contact(colours, constraints, points, bodies, |c, points, b1, b2| {
+        solve_normals(c, points, (b1, b2), inv_h, pass, max_push);
+        let total: f64 = points.iter().map(|p| p.normal_impulse).sum();
+        c.friction.solve(c.normal, total, b1, b2);
     });
 }
 
