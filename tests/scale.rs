@@ -100,11 +100,7 @@ fn grid_broad_phase_reproduces_all_pairs_bit_for_bit() {
 #[test]
 fn results_do_not_depend_on_thread_count() {
     let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| {
+        common::with_threads(threads, || {
             scenes(&Settings::default())
                 .into_iter()
                 .map(|(_, w)| trajectory(w, 200))

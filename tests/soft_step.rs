@@ -188,38 +188,12 @@ fn bounces_keep_e_squared_of_the_energy() {
 
 #[test]
 fn fast_box_does_not_pass_through_a_thin_wall() {
-    let ball = Shape::from_tet_mesh(&assets::cuboid(DVec3::splat(0.5))).unwrap();
-    let wall = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(0.5, 20.0, 20.0))).unwrap();
     for dt in [0.02, 0.04] {
-        let mut thrown = RigidBody::on_shape(
-            &ball,
-            0,
-            100.0,
-            false,
-            DVec3::new(-10.0, 30.0, 0.0),
-            DQuat::IDENTITY,
-        );
-        thrown.linear_velocity = DVec3::new(200.0, 0.0, 0.0);
-        let fixed = RigidBody::on_shape(
-            &wall,
-            1,
-            100.0,
-            true,
-            DVec3::new(0.0, 30.0, 0.0),
-            DQuat::IDENTITY,
-        );
-        let mut world = World::new(
-            vec![ball.clone(), wall.clone()],
-            vec!["ball".into(), "wall".into()],
-            vec![thrown, fixed],
-            Vec::new(),
-            Settings {
-                gravity: DVec3::ZERO,
-                restitution: 0.0,
-                substeps: 1,
-                ..accurate(dt)
-            },
-        );
+        let mut world = common::box_thrown_at_wall(Settings {
+            restitution: 0.0,
+            substeps: 1,
+            ..accurate(dt)
+        });
         for _ in 0..20 {
             world.step();
             // The wall spans x = -0.5..0.5 and the box is 1 wide: it must stay on the near side
@@ -324,11 +298,7 @@ fn results_do_not_depend_on_the_thread_count() {
         ("stress", 150),
     ] {
         let run = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| {
+            common::with_threads(threads, || {
                 let mut w =
                     tumble::scene::load(scene, &ConstraintsChoice::Auto, accurate(0.02)).unwrap();
                 trajectory(&mut w, steps)

@@ -305,35 +305,7 @@ fn injected_nan_is_quarantined_and_does_not_spread() {
 /// Tunnelling: a fast box thrown at a thin fixed wall. At dt = 0.04 it moves 8 units a step and
 /// skips the 1-unit wall; 8 substeps (1 unit each) catch it.
 fn thrown_at_wall(settings: Settings) -> f64 {
-    let ball = tumble::Shape::from_tet_mesh(&assets::cuboid(DVec3::splat(0.5))).unwrap();
-    let wall = tumble::Shape::from_tet_mesh(&assets::cuboid(DVec3::new(0.5, 20.0, 20.0))).unwrap();
-    let mut thrown = tumble::RigidBody::on_shape(
-        &ball,
-        0,
-        100.0,
-        false,
-        DVec3::new(-10.0, 30.0, 0.0),
-        DQuat::IDENTITY,
-    );
-    thrown.linear_velocity = DVec3::new(200.0, 0.0, 0.0);
-    let fixed = tumble::RigidBody::on_shape(
-        &wall,
-        1,
-        100.0,
-        true,
-        DVec3::new(0.0, 30.0, 0.0),
-        DQuat::IDENTITY,
-    );
-    let mut world = World::new(
-        vec![ball, wall],
-        vec!["ball".into(), "wall".into()],
-        vec![thrown, fixed],
-        Vec::new(),
-        Settings {
-            gravity: DVec3::ZERO,
-            ..settings
-        },
-    );
+    let mut world = common::box_thrown_at_wall(settings);
     for _ in 0..10 {
         world.step();
     }

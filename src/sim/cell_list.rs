@@ -5,6 +5,7 @@
 //! (bodies flung far away) is left to the hash grid.
 
 use super::aabb::Aabb;
+use super::grid::{merge_found, overlap_test};
 use rayon::prelude::*;
 
 /// Bodies spanning more cells than this per axis are tested against every body instead.
@@ -135,13 +136,7 @@ impl CellList {
         boxes: &[Aabb],
         keep: impl Fn(usize, usize) -> bool + Sync,
     ) -> (Vec<(u32, u32)>, usize) {
-        let consider = |a: usize, b: usize, (pairs, tested): &mut (Vec<(u32, u32)>, usize)| {
-            *tested += 1;
-            let (i, j) = (a.min(b), a.max(b));
-            if (awake[i] || awake[j]) && boxes[i].overlaps(&boxes[j]) && keep(i, j) {
-                pairs.push((i as u32, j as u32));
-            }
-        };
+        let consider = overlap_test(awake, boxes, keep);
         let cells = self.starts.len().saturating_sub(1);
         let in_cells = (0..cells).into_par_iter().with_min_len(1024).fold(
             || (Vec::new(), 0),
@@ -167,11 +162,7 @@ impl CellList {
             }
             found
         });
-        let chunks: Vec<(Vec<(u32, u32)>, usize)> = in_cells.chain(with_oversized).collect();
-        let tested = chunks.iter().map(|c| c.1).sum();
-        let mut pairs: Vec<(u32, u32)> = chunks.into_iter().flat_map(|c| c.0).collect();
-        pairs.sort_unstable();
-        (pairs, tested)
+        merge_found(in_cells.chain(with_oversized).collect())
     }
 
     /// The cell index of the lowest cell two bodies' ranges share (both in cells).

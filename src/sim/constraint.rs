@@ -99,12 +99,8 @@ impl DistanceConstraint {
     }
 }
 
-/// Two distinct bodies of one slice, mutably.
-pub(crate) fn pair_mut(
-    bodies: &mut [RigidBody],
-    i: usize,
-    j: usize,
-) -> (&mut RigidBody, &mut RigidBody) {
+/// Two distinct bodies of one slice (rigid bodies or the soft step's solver bodies), mutably.
+pub(crate) fn pair_mut<T>(bodies: &mut [T], i: usize, j: usize) -> (&mut T, &mut T) {
     assert_ne!(i, j, "a constraint or contact needs two distinct bodies");
     if i < j {
         let (a, b) = bodies.split_at_mut(j);

@@ -228,13 +228,7 @@ impl Grid {
         keep: impl Fn(usize, usize) -> bool + Sync,
     ) -> (Vec<(u32, u32)>, usize) {
         let crowded: Vec<u64> = self.crowded.iter().copied().collect();
-        let consider = |a: usize, b: usize, (pairs, tested): &mut (Vec<(u32, u32)>, usize)| {
-            *tested += 1;
-            let (i, j) = (a.min(b), a.max(b));
-            if (awake[i] || awake[j]) && aabbs[i].overlaps(&aabbs[j]) && keep(i, j) {
-                pairs.push((i as u32, j as u32));
-            }
-        };
+        let consider = overlap_test(awake, aabbs, keep);
         let in_cells = crowded.par_chunks(64).map(|keys| {
             let mut found = (Vec::new(), 0);
             for &key in keys {
@@ -262,12 +256,7 @@ impl Grid {
             }
             found
         });
-        let chunks: Vec<(Vec<(u32, u32)>, usize)> = in_cells.chain(with_oversized).collect();
-        let tested = chunks.iter().map(|c| c.1).sum();
-        let mut pairs: Vec<(u32, u32)> = chunks.into_iter().flat_map(|c| c.0).collect();
-        pairs.sort_unstable();
-        pairs.dedup();
-        (pairs, tested)
+        merge_found(in_cells.chain(with_oversized).collect())
     }
 
     /// The key of the first cell (lowest corner) two bodies' cell ranges share: the one cell
@@ -326,6 +315,34 @@ impl Grid {
         }
         out.sort_unstable();
     }
+}
+
+/// Pairs found by one parallel chunk of a cell walk, and the box tests it made.
+pub(super) type Found = (Vec<(u32, u32)>, usize);
+
+/// The test a cell walk applies to two bodies sharing a cell: counted, and kept (as i < j) when
+/// their boxes overlap, one of them is awake and `keep(i, j)`.
+pub(super) fn overlap_test<'a>(
+    awake: &'a [bool],
+    boxes: &'a [Aabb],
+    keep: impl Fn(usize, usize) -> bool + Sync + 'a,
+) -> impl Fn(usize, usize, &mut Found) + Sync + 'a {
+    move |a, b, (pairs, tested)| {
+        *tested += 1;
+        let (i, j) = (a.min(b), a.max(b));
+        if (awake[i] || awake[j]) && boxes[i].overlaps(&boxes[j]) && keep(i, j) {
+            pairs.push((i as u32, j as u32));
+        }
+    }
+}
+
+/// The chunks' pairs, sorted and each once, and their box tests summed.
+pub(super) fn merge_found(chunks: Vec<Found>) -> Found {
+    let tested = chunks.iter().map(|c| c.1).sum();
+    let mut pairs: Vec<(u32, u32)> = chunks.into_iter().flat_map(|c| c.0).collect();
+    pairs.sort_unstable();
+    pairs.dedup();
+    (pairs, tested)
 }
 
 /// Cell size for a set of bodies: twice the median diagonal of their boxes, so a typical body's

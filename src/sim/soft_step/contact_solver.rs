@@ -540,17 +540,7 @@ fn solve_normals(
     for (p, &approach) in points.iter_mut().zip(&approach) {
         let moved = b2.point_displacement(p.r2) - b1.point_displacement(p.r1);
         let s = p.separation + n.dot(moved);
-        let (bias, mass_scale, impulse_scale) = if s > 0.0 {
-            (s * inv_h, 1.0, 0.0)
-        } else if use_bias {
-            (
-                (soft.bias_rate * s).max(-max_push),
-                soft.mass_scale,
-                soft.impulse_scale,
-            )
-        } else {
-            (0.0, 1.0, 0.0)
-        };
+        let (bias, mass_scale, impulse_scale) = soft.coefficients(s, inv_h, use_bias, max_push);
         let vn = p.along_normal.velocity(n, b1, b2);
         let impulse = -p.normal_mass * mass_scale * (vn + bias) - impulse_scale * p.normal_impulse;
         let total = (p.normal_impulse + impulse).max(0.0);

@@ -6,9 +6,9 @@
 //! moves a body without the impulse that would move it, so no energy leaves with corrections.
 
 use super::softness::Softness;
-use super::solver_body::{SolverBody, inverse_effective_mass, pair_mut};
+use super::solver_body::{SolverBody, inverse_effective_mass};
 use crate::sim::body::RigidBody;
-use crate::sim::constraint::DistanceConstraint;
+use crate::sim::constraint::{DistanceConstraint, pair_mut};
 use glam::DVec3;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -99,17 +99,7 @@ pub fn solve(
         // C >= 0 when satisfied; Cdot its rate along the row's direction.
         let c = sign * (length - row.bound);
         let c_dot = sign * axis.dot(b2.point_velocity(r2) - b1.point_velocity(r1));
-        let (bias, mass_scale, impulse_scale) = if c > 0.0 {
-            (c * inv_h, 1.0, 0.0)
-        } else if use_bias {
-            (
-                (softness.bias_rate * c).max(-max_push),
-                softness.mass_scale,
-                softness.impulse_scale,
-            )
-        } else {
-            (0.0, 1.0, 0.0)
-        };
+        let (bias, mass_scale, impulse_scale) = softness.coefficients(c, inv_h, use_bias, max_push);
         let impulse = -mass_scale * (c_dot + bias) / k - impulse_scale * row.impulse;
         let total = (row.impulse + impulse).max(0.0);
         let p = sign * (total - row.impulse) * axis;

@@ -11,8 +11,9 @@
 
 use super::contact_solver::{ContactConstraint, ContactPoint, bounce_velocity};
 use super::manifold::{GROUND, Manifold};
-use super::solver_body::{SolverBody, pair_mut};
+use super::solver_body::SolverBody;
 use crate::sim::body::RigidBody;
+use crate::sim::constraint::pair_mut;
 use glam::DVec3;
 
 /// Gauss-Seidel passes of the restitution targets.

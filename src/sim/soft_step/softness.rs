@@ -32,6 +32,30 @@ impl Softness {
         }
     }
 
+    /// `(bias, mass scale, impulse scale)` of one solve of an inequality whose position error is
+    /// `c` (>= 0 when satisfied). While it is still satisfied it may close the gap within the
+    /// substep and no more (a speculative constraint, rigid); violated, the soft pass pushes
+    /// back at the soft rate but at most `max_push`, the other passes only make it rigid.
+    pub fn coefficients(
+        &self,
+        c: f64,
+        inv_h: f64,
+        use_bias: bool,
+        max_push: f64,
+    ) -> (f64, f64, f64) {
+        if c > 0.0 {
+            (c * inv_h, 1.0, 0.0)
+        } else if use_bias {
+            (
+                (self.bias_rate * c).max(-max_push),
+                self.mass_scale,
+                self.impulse_scale,
+            )
+        } else {
+            (0.0, 1.0, 0.0)
+        }
+    }
+
     /// No softness and no position correction: the relax pass.
     pub const RIGID: Softness = Softness {
         bias_rate: 0.0,

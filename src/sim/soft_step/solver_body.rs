@@ -70,22 +70,6 @@ impl SolverBody {
     }
 }
 
-/// The two bodies of a constraint, mutably (distinct indices).
-pub fn pair_mut(
-    bodies: &mut [SolverBody],
-    i: usize,
-    j: usize,
-) -> (&mut SolverBody, &mut SolverBody) {
-    debug_assert_ne!(i, j);
-    if i < j {
-        let (a, b) = bodies.split_at_mut(j);
-        (&mut a[i], &mut b[0])
-    } else {
-        let (a, b) = bodies.split_at_mut(i);
-        (&mut b[0], &mut a[j])
-    }
-}
-
 /// Inverse effective mass `m1^-1 + m2^-1 + (r1 x n).I1^-1(r1 x n) + (r2 x n).I2^-1(r2 x n)`.
 #[inline]
 pub fn inverse_effective_mass(
