@@ -255,6 +255,35 @@ fn a_resting_stack_sleeps_and_a_dropped_box_wakes_it() {
     assert!((top - 3.5).abs() < 0.1, "the dropped box rests at {top}");
 }
 
+/// Two boxes resting side by side, 0.01 apart (inside each other's speculative margin, not
+/// touching), come to rest at different times: each falls asleep once and stays asleep (a body
+/// at rest does not wake its neighbour; before, each woke the other as it fell asleep, forever).
+#[test]
+fn neighbours_at_rest_do_not_keep_each_other_awake() {
+    let settings = Settings {
+        restitution: 0.2,
+        ..accurate(0.02)
+    };
+    let mut world = boxes(2, settings);
+    world.bodies[1].position = DVec3::new(2.01, 1.0, 0.0);
+    let mut wakes = [0, 0];
+    let mut was_asleep = [false, false];
+    for _ in 0..500 {
+        world.step();
+        for (k, b) in world.bodies.iter().enumerate() {
+            if was_asleep[k] && !b.asleep {
+                wakes[k] += 1;
+            }
+            was_asleep[k] = b.asleep;
+        }
+    }
+    assert!(
+        was_asleep.iter().all(|&a| a),
+        "not asleep at the end; woken {wakes:?}"
+    );
+    assert_eq!(wakes, [0, 0], "woken while the other rested");
+}
+
 /// A pendulum is slow only for an instant at each apex: it never falls asleep, at any time step.
 #[test]
 fn a_pendulum_never_sleeps() {

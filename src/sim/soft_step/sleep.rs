@@ -142,24 +142,30 @@ pub fn wake(
     true
 }
 
-/// Sleeping bodies that this step's candidate pairs bring next to an awake body (their boxes,
-/// grown by how far the awake one can travel, overlap), and sleeping bodies constrained to an
-/// awake one.
+/// Sleeping bodies that this step's candidate pairs bring next to a moving body (their boxes,
+/// grown by how far the moving one can travel, overlap), and sleeping bodies constrained to an
+/// awake one. An awake body at rest disturbs nothing: two resting islands whose boxes overlap
+/// would otherwise wake each other in turn, each falling asleep just after the other, forever.
 pub fn disturbed(
     bodies: &[RigidBody],
     constraints: &[DistanceConstraint],
     pairs: &[(u32, u32)],
 ) -> Vec<usize> {
     let mut out = Vec::new();
-    let pairs = pairs.iter().map(|&(i, j)| (i as usize, j as usize));
-    let constrained = constraints.iter().map(|c| (c.body1, c.body2));
-    for (i, j) in pairs.chain(constrained) {
+    let moving = |b: &RigidBody| b.is_awake() && b.sleep_time == 0.0;
+    let mut wake = |(i, j): (usize, usize), disturbs: &dyn Fn(&RigidBody) -> bool| {
         let (a, b) = (&bodies[i], &bodies[j]);
-        if a.asleep && b.is_awake() {
+        if a.asleep && disturbs(b) {
             out.push(i);
-        } else if b.asleep && a.is_awake() {
+        } else if b.asleep && disturbs(a) {
             out.push(j);
         }
+    };
+    for &(i, j) in pairs {
+        wake((i as usize, j as usize), &moving);
+    }
+    for c in constraints {
+        wake((c.body1, c.body2), &RigidBody::is_awake);
     }
     out
 }
