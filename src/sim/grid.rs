@@ -131,17 +131,20 @@ impl Grid {
         }
     }
 
-    /// Brings the grid to `aabbs` (the `active` bodies only) one body at a time: a body still in
-    /// the same cells costs one range computation, so a scene that mostly stays put is cheap
+    /// Brings the grid to `aabbs` (the `active` bodies only) one body at a time: a body whose box
+    /// has not `moved` since the last sync costs nothing, one still in the same cells one range
+    /// computation, so a scene that mostly stays put is cheap
     /// where [`Grid::rebuild`] would hash every body again. The grid holds the same bodies in
     /// the same cells either way (the lists' order may differ; every query sorts).
-    pub fn sync(&mut self, aabbs: &[Aabb], active: &[bool]) {
+    pub fn sync(&mut self, aabbs: &[Aabb], active: &[bool], moved: &[bool]) {
         if self.present.len() != aabbs.len() {
             return self.rebuild(aabbs, active);
         }
         for (index, aabb) in aabbs.iter().enumerate() {
             if active[index] {
-                self.update(index, aabb);
+                if moved[index] || !self.present[index] {
+                    self.update(index, aabb);
+                }
             } else if self.present[index] {
                 self.take_out(index);
             }
