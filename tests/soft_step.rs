@@ -16,6 +16,14 @@ fn accurate(dt: f64) -> Settings {
     }
 }
 
+/// The preset with restitution 0.2: bodies that land come to rest (at e = 1 they bounce on).
+fn settling(dt: f64) -> Settings {
+    Settings {
+        restitution: 0.2,
+        ..accurate(dt)
+    }
+}
+
 fn boxes(stack: usize, settings: Settings) -> World {
     let s = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(1.0, 0.5, 0.75))).unwrap();
     let bodies = (0..stack)
@@ -214,11 +222,7 @@ fn fast_box_does_not_pass_through_a_thin_wall() {
 /// through contact when it lands (not before), and the four fall asleep again.
 #[test]
 fn a_resting_stack_sleeps_and_a_dropped_box_wakes_it() {
-    let settings = Settings {
-        restitution: 0.2,
-        ..accurate(0.02)
-    };
-    let mut world = boxes(4, settings);
+    let mut world = boxes(4, settling(0.02));
     world.bodies[3].position.y = 20.0;
     let stack_asleep = |w: &World| w.bodies[..3].iter().all(|b| b.asleep);
     let (mut slept_at, mut woke_at, mut landed_at) = (None, None, None);
@@ -260,11 +264,7 @@ fn a_resting_stack_sleeps_and_a_dropped_box_wakes_it() {
 /// at rest does not wake its neighbour; before, each woke the other as it fell asleep, forever).
 #[test]
 fn neighbours_at_rest_do_not_keep_each_other_awake() {
-    let settings = Settings {
-        restitution: 0.2,
-        ..accurate(0.02)
-    };
-    let mut world = boxes(2, settings);
+    let mut world = boxes(2, settling(0.02));
     world.bodies[1].position = DVec3::new(2.01, 1.0, 0.0);
     let mut wakes = [0, 0];
     let mut was_asleep = [false, false];

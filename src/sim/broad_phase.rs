@@ -85,16 +85,19 @@ impl BroadPhase {
         self.placed.clear();
         let n = bodies.len();
         let kept = self.grid_holds_proxies && self.proxies.len() == n && self.aabbs.len() == n;
-        let proxies: Vec<(Aabb, bool)> = (0..n)
+        self.proxies.resize(n, Aabb::EMPTY);
+        let mut moved = vec![false; n];
+        let aabbs = &self.aabbs;
+        (&mut self.proxies, &mut moved)
             .into_par_iter()
+            .zip(bodies)
+            .enumerate()
             .with_min_len(256)
-            .map(|i| match kept && self.proxies[i].contains(&self.aabbs[i]) {
-                true => (self.proxies[i], false),
-                false => (self.proxy_of(i, &bodies[i], shapes), true),
-            })
-            .collect();
-        let moved: Vec<bool> = proxies.iter().map(|p| p.1).collect();
-        self.proxies = proxies.into_iter().map(|p| p.0).collect();
+            .filter(|(i, ((proxy, _), _))| !(kept && proxy.contains(&aabbs[*i])))
+            .for_each(|(i, ((proxy, moved), body))| {
+                *proxy = proxy_of(&aabbs[i], body, shapes);
+                *moved = true;
+            });
         self.grid.sync(&self.proxies, &active, &moved);
         self.grid_holds_proxies = true;
         PairQueue::new(self.grid.overlapping_pairs(&self.proxies, keep, tested))
@@ -166,7 +169,7 @@ impl BroadPhase {
         if self.proxies[index].contains(&self.aabbs[index]) {
             return;
         }
-        self.proxies[index] = self.proxy_of(index, body, shapes);
+        self.proxies[index] = proxy_of(&self.aabbs[index], body, shapes);
         self.grid.update(index, &self.proxies[index]);
         self.grid.query(index, &self.proxies, &mut self.neighbours);
         for &other in &self.neighbours {
@@ -178,12 +181,12 @@ impl BroadPhase {
     pub fn refresh(&mut self, index: usize, body: &RigidBody, shapes: &[Shape]) {
         self.aabbs[index] = body_aabb(body, &shapes[body.shape]);
     }
+}
 
-    /// The body's box fattened by a quarter of its largest half extent: room to move during
-    /// contact resolution before the grid must be asked again (0.1 made pile-1000 spend a third
-    /// of its step re-querying the grid).
-    fn proxy_of(&self, index: usize, body: &RigidBody, shapes: &[Shape]) -> Aabb {
-        let margin = 0.25 * shapes[body.shape].local_box_half_extents.max_element();
-        self.aabbs[index].fattened(margin)
-    }
+/// The body's box `aabb` fattened by a quarter of its largest half extent: room to move during
+/// contact resolution before the grid must be asked again (0.1 made pile-1000 spend a third of
+/// its step re-querying the grid).
+fn proxy_of(aabb: &Aabb, body: &RigidBody, shapes: &[Shape]) -> Aabb {
+    let margin = 0.25 * shapes[body.shape].local_box_half_extents.max_element();
+    aabb.fattened(margin)
 }

@@ -285,11 +285,6 @@ impl World {
         }
     }
 
-    /// The soft step's manifolds of the last step (empty for the coursework solver).
-    pub fn manifolds(&self) -> &[crate::sim::soft_step::manifold::Manifold] {
-        self.soft_step.manifolds()
-    }
-
     /// World boxes of all bodies (computed from poses).
     pub fn body_aabbs(&self) -> Vec<Aabb> {
         self.bodies

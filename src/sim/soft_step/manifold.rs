@@ -165,7 +165,8 @@ fn from_parry(
     let mut points = without_repeated_gjk_point(points);
     // The deepest first, as the reduction below orders them: Gauss-Seidel settles a stack of
     // five boxes at dt = 0.04 to a third of the jitter it keeps in parry's clipping order.
-    if let Some(deepest) = (!points.is_empty()).then(|| argmax(&points, |p| -p.separation)) {
+    if !points.is_empty() {
+        let deepest = argmax(&points, |p| -p.separation);
         points.swap(0, deepest);
     }
     (!points.is_empty()).then(|| Manifold::new(i, j, normal, &reduce(points, normal)))
@@ -177,13 +178,14 @@ fn from_parry(
 /// bodies apart: resting piles jittered at 0.07 units/s.
 fn without_repeated_gjk_point(mut points: Vec<ManifoldPoint>) -> Vec<ManifoldPoint> {
     const SAME_POINT: f64 = 1e-6;
-    let repeated = |k: usize, points: &[ManifoldPoint]| {
-        points[k].key == 0
-            && points.iter().enumerate().any(|(l, q)| {
-                l != k && q.key != 0 && (q.point - points[k].point).length() <= SAME_POINT
-            })
+    let Some(k) = points.iter().position(|p| p.key == 0) else {
+        return points;
     };
-    if let Some(k) = (0..points.len()).find(|&k| repeated(k, &points)) {
+    let at = points[k].point;
+    if points
+        .iter()
+        .any(|q| q.key != 0 && (q.point - at).length() <= SAME_POINT)
+    {
         points.remove(k);
     }
     points
