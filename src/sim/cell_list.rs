@@ -5,7 +5,7 @@
 //! (bodies flung far away) is left to the hash grid.
 
 use super::aabb::Aabb;
-use super::grid::{merge_found, overlap_test};
+use super::grid::{merge_found_parts, overlap_test};
 use rayon::prelude::*;
 
 /// Bodies spanning more cells than this per axis are tested against every body instead.
@@ -44,6 +44,7 @@ impl CellList {
         let small = |b: &Aabb| ((b.max - b.min) * inv).max_element() < MAX_CELLS_PER_AXIS;
         let bounds = (boxes, present)
             .into_par_iter()
+            .with_min_len(1024)
             .filter(|(b, p)| **p && small(b))
             .map(|(b, _)| *b)
             .reduce(|| Aabb::EMPTY, |a, b| a.union(&b));
@@ -76,6 +77,7 @@ impl CellList {
         self.ranges.par_extend(
             (boxes, &self.present)
                 .into_par_iter()
+                .with_min_len(1024)
                 .map(|(b, &p)| (p && small(b)).then(|| (cell(b.min), cell(b.max)))),
         );
         self.oversized.clear();
@@ -162,7 +164,7 @@ impl CellList {
             }
             found
         });
-        merge_found(in_cells.chain(with_oversized).collect())
+        merge_found_parts(in_cells, with_oversized)
     }
 
     /// The cell index of the lowest cell two bodies' ranges share (both in cells).

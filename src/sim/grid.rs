@@ -259,7 +259,7 @@ impl Grid {
             }
             found
         });
-        merge_found(in_cells.chain(with_oversized).collect())
+        merge_found_parts(in_cells, with_oversized)
     }
 
     /// The key of the first cell (lowest corner) two bodies' cell ranges share: the one cell
@@ -340,6 +340,18 @@ pub(super) fn overlap_test<'a>(
 }
 
 /// The chunks' pairs, sorted and each once, and their box tests summed.
+/// [`merge_found`] over the finds of the cells and of the oversized bodies. Collected one after
+/// the other: a chain forks even when one side is empty, and a fork from outside the thread
+/// pool wakes a worker and waits for it (tens of microseconds, more than a small scene's step).
+pub(super) fn merge_found_parts(
+    in_cells: impl ParallelIterator<Item = Found>,
+    with_oversized: impl ParallelIterator<Item = Found>,
+) -> Found {
+    let mut parts: Vec<Found> = in_cells.collect();
+    parts.par_extend(with_oversized);
+    merge_found(parts)
+}
+
 pub(super) fn merge_found(chunks: Vec<Found>) -> Found {
     let tested = chunks.iter().map(|c| c.1).sum();
     let mut pairs: Vec<(u32, u32)> = chunks.into_iter().flat_map(|c| c.0).collect();
