@@ -132,9 +132,11 @@ struct LineVertex {
     @location(1) color: vec4<f32>,
 };
 
+// Lines and the ground: a colour per vertex; the world position is for the ground's shadow.
 struct LineOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) color: vec4<f32>,
+    @location(1) world: vec3<f32>,
 };
 
 @vertex
@@ -142,6 +144,7 @@ fn vs_line(v: LineVertex) -> LineOut {
     var out: LineOut;
     out.clip = globals.view_proj * vec4<f32>(v.position, 1.0);
     out.color = v.color;
+    out.world = v.position;
     return out;
 }
 
@@ -150,24 +153,9 @@ fn fs_line(in: LineOut) -> @location(0) vec4<f32> {
     return in.color;
 }
 
-struct GroundOut {
-    @builtin(position) clip: vec4<f32>,
-    @location(0) color: vec4<f32>,
-    @location(1) world: vec3<f32>,
-};
-
-@vertex
-fn vs_ground(v: LineVertex) -> GroundOut {
-    var out: GroundOut;
-    out.clip = globals.view_proj * vec4<f32>(v.position, 1.0);
-    out.color = v.color;
-    out.world = v.position;
-    return out;
-}
-
 // The ground plane and grid: their own colour where the key light reaches, darker in shadow.
 @fragment
-fn fs_ground(in: GroundOut) -> @location(0) vec4<f32> {
+fn fs_ground(in: LineOut) -> @location(0) vec4<f32> {
     if globals.light.w > 0.5 {
         return in.color;
     }

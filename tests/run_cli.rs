@@ -84,3 +84,48 @@ fn trajectory_survives_ctrl_c() {
     assert_eq!(names.len(), 1, "left behind: {names:?}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `bench accuracy` writes its JSON beside its CSV, from the same run: every CSV row's value is
+/// in the JSON under scenario -> combination -> dt -> metrics.
+#[test]
+fn bench_accuracy_json_beside_the_csv_matches_it() {
+    let dir = std::env::temp_dir().join(format!("tumble-bench-json-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = tumble()
+        .args([
+            "bench",
+            "accuracy",
+            "--scenarios",
+            "free-fall",
+            "--dts",
+            "0.04",
+        ])
+        .args(["--combinations", "coursework,accurate", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("accuracy.json")).unwrap()).unwrap();
+    let csv = std::fs::read_to_string(dir.join("accuracy.csv")).unwrap();
+    let mut rows = 0;
+    for line in csv.lines().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        let (scenario, combination, dt, metric) = (f[0], f[1], f[2], f[4]);
+        let value: f64 = f[5].parse().unwrap();
+        let in_json = json[scenario][combination][dt]["metrics"][metric]
+            .as_f64()
+            .unwrap();
+        assert!(
+            (in_json - value).abs() <= 1e-6 * value.abs().max(1e-300),
+            "{line}"
+        );
+        rows += 1;
+    }
+    assert_eq!(rows, 2, "one metric per combination:\n{csv}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -3,7 +3,9 @@
 
 use super::ProgressBar;
 use clap::Args;
-use std::path::PathBuf;
+use serde::Serialize;
+use std::io::Write;
+use std::path::{Path, PathBuf};
 use tumble::Settings;
 use tumble::bench::accuracy::{AccuracyConfig, AccuracyReport, primary_metric_of};
 use tumble::bench::scale::{ScaleConfig, ScaleReport, Variant};
@@ -115,10 +117,26 @@ pub fn scale(args: &ScaleArgs) -> anyhow::Result<()> {
         out: args.out.clone(),
     };
     let report = tumble::bench::scale::run(&config, &ProgressBar::default())?;
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+    print_or_table(args.json, &report, &report.csv, || print_scale(&report))
+}
+
+/// With `--json` prints `value` as JSON, else the `table`; either way the JSON is written beside
+/// the CSV (`beside` with the extension `.json`), so a folder's JSON, CSV and plots are always
+/// from the same run.
+fn print_or_table<T: Serialize>(
+    json: bool,
+    value: &T,
+    beside: &Path,
+    table: impl FnOnce(),
+) -> anyhow::Result<()> {
+    let text = serde_json::to_string_pretty(value)?;
+    let path = beside.with_extension("json");
+    tumble::io::write_file_atomically(&path, |w| w.write_all(text.as_bytes()))?;
+    if json {
+        println!("{text}");
     } else {
-        print_scale(&report);
+        table();
+        println!("wrote {}", path.display());
     }
     Ok(())
 }
@@ -192,12 +210,9 @@ pub fn accuracy(args: &AccuracyArgs) -> anyhow::Result<()> {
         out: args.out.clone(),
     };
     let report = tumble::bench::accuracy::run(&config, &ProgressBar::default())?;
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&report.results)?);
-    } else {
-        print_accuracy(&report);
-    }
-    Ok(())
+    print_or_table(args.json, &report.results, &report.csv, || {
+        print_accuracy(&report)
+    })
 }
 
 fn print_accuracy(report: &AccuracyReport) {

@@ -339,7 +339,6 @@ pub(super) fn overlap_test<'a>(
     }
 }
 
-/// The chunks' pairs, sorted and each once, and their box tests summed.
 /// [`merge_found`] over the finds of the cells and of the oversized bodies. Collected one after
 /// the other: a chain forks even when one side is empty, and a fork from outside the thread
 /// pool wakes a worker and waits for it (tens of microseconds, more than a small scene's step).
@@ -352,7 +351,8 @@ pub(super) fn merge_found_parts(
     merge_found(parts)
 }
 
-pub(super) fn merge_found(chunks: Vec<Found>) -> Found {
+/// The chunks' pairs, sorted and each once, and their box tests summed.
+fn merge_found(chunks: Vec<Found>) -> Found {
     let tested = chunks.iter().map(|c| c.1).sum();
     let mut pairs: Vec<(u32, u32)> = chunks.into_iter().flat_map(|c| c.0).collect();
     pairs.sort_unstable();

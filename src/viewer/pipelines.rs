@@ -132,7 +132,7 @@ impl SurfacePipelines {
         };
         let ground = |label, topology, depth_write, depth_compare| PipelineSpec {
             label,
-            vertex_entry: "vs_ground",
+            vertex_entry: "vs_line",
             fragment_entry: "fs_ground",
             buffers: &LINE_BUFFERS,
             topology,

@@ -451,12 +451,7 @@ impl SoftStep {
     }
 
     /// Warm start, the soft pass, new poses, joints projected, the relax pass.
-    fn substep(
-        &mut self,
-        ctx: &StepContext,
-        bodies: &mut [RigidBody],
-        substeps: &Substeps,
-    ) {
+    fn substep(&mut self, ctx: &StepContext, bodies: &mut [RigidBody], substeps: &Substeps) {
         let w = &mut self.work;
         joint_solver::warm_start(&w.rows, bodies, &mut w.bodies);
         contact_solver::warm_start(&w.colours, &mut w.contacts, &mut w.points, &mut w.bodies);
