@@ -6,17 +6,20 @@ fn tumble() -> Command {
     Command::new(env!("CARGO_BIN_EXE_tumble"))
 }
 
-#[test]
-fn json_summary_has_the_documented_fields() {
-    let out = tumble()
-        .args(["run", "two-chain", "--steps", "50", "--json"])
-        .output()
-        .unwrap();
+/// Runs `command` and returns its output, failing with its stderr if it did not succeed.
+fn succeeded(command: &mut Command) -> std::process::Output {
+    let out = command.output().unwrap();
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+    out
+}
+
+#[test]
+fn json_summary_has_the_documented_fields() {
+    let out = succeeded(tumble().args(["run", "two-chain", "--steps", "50", "--json"]));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     for key in [
         "steps",
@@ -91,23 +94,18 @@ fn trajectory_survives_ctrl_c() {
 fn bench_accuracy_json_beside_the_csv_matches_it() {
     let dir = std::env::temp_dir().join(format!("tumble-bench-json-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let out = tumble()
-        .args([
-            "bench",
-            "accuracy",
-            "--scenarios",
-            "free-fall",
-            "--dts",
-            "0.04",
-        ])
-        .args(["--combinations", "coursework,accurate", "--out"])
-        .arg(&dir)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    succeeded(
+        tumble()
+            .args([
+                "bench",
+                "accuracy",
+                "--scenarios",
+                "free-fall",
+                "--dts",
+                "0.04",
+            ])
+            .args(["--combinations", "coursework,accurate", "--out"])
+            .arg(&dir),
     );
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("accuracy.json")).unwrap()).unwrap();
