@@ -1,11 +1,11 @@
 //! A dense grid of boxes rebuilt every step by counting sort (a cell list, as in molecular
 //! dynamics): the soft step's broad phase. Each cell's bodies lie contiguous and in ascending
-//! order, so finding the overlapping pairs is a sequential sweep over the cells, in parallel;
+//! order, so each body finds its partners by a sweep over its few cells, in parallel;
 //! no hash lookups and no per-cell allocations. A scene whose boxes would need too many cells
 //! (bodies flung far away) is left to the hash grid.
 
 use super::aabb::Aabb;
-use super::grid::{merge_found_parts, overlap_test};
+use super::grid::{Found, merge_found, overlap_test};
 use rayon::prelude::*;
 
 /// Bodies spanning more cells than this per axis are tested against every body instead.
@@ -132,6 +132,10 @@ impl CellList {
     /// Every pair (i < j, sorted, each once) of bodies whose boxes overlap, at least one of them
     /// `awake`, for which `keep(i, j)`: two bodies in cells are reported in the first cell they
     /// share. Returns the pairs and the number of box tests.
+    ///
+    /// Each body finds its partners of higher index, so the bodies' finds, in body order, are
+    /// already sorted, and the work splits evenly over the bodies (a pile's dense cells made a
+    /// split over cells run on one core).
     pub fn pairs_with_awake(
         &self,
         awake: &[bool],
@@ -139,32 +143,49 @@ impl CellList {
         keep: impl Fn(usize, usize) -> bool + Sync,
     ) -> (Vec<(u32, u32)>, usize) {
         let consider = overlap_test(awake, boxes, keep);
-        let cells = self.starts.len().saturating_sub(1);
-        let in_cells = (0..cells).into_par_iter().with_min_len(1024).fold(
+        let n = self.present.len();
+        let found = (0..n).into_par_iter().with_min_len(512).fold(
             || (Vec::new(), 0),
-            |mut found, c| {
-                let list = &self.entries[self.starts[c] as usize..self.starts[c + 1] as usize];
-                for (k, &a) in list.iter().enumerate() {
-                    for &b in &list[k + 1..] {
-                        if self.first_shared_cell(a as usize, b as usize) == c {
-                            consider(a as usize, b as usize, &mut found);
+            |mut found: Found, a| {
+                let from = found.0.len();
+                match self.ranges[a] {
+                    Some(range) => self.partners_in_cells(a, range, &consider, &mut found),
+                    None if self.present[a] => {
+                        // An oversized body is tested against every body of higher index.
+                        for b in (a + 1..n).filter(|&b| self.present[b]) {
+                            consider(a, b, &mut found);
                         }
                     }
+                    None => {}
                 }
+                found.0[from..].sort_unstable();
                 found
             },
         );
-        let with_oversized = self.oversized.par_iter().map(|&o| {
-            let mut found = (Vec::new(), 0);
-            for b in (0..self.present.len()).filter(|&b| self.present[b] && b != o as usize) {
-                // A pair of two oversized bodies is tested from the lower one.
-                if self.ranges[b].is_some() || (b as u32) > o {
-                    consider(o as usize, b, &mut found);
+        merge_found(found.collect())
+    }
+
+    /// Body `a`'s partners of higher index: those sharing a cell with it (each in the first
+    /// cell they share) and the oversized ones.
+    fn partners_in_cells(
+        &self,
+        a: usize,
+        range: CellRange,
+        consider: &impl Fn(usize, usize, &mut Found),
+        found: &mut Found,
+    ) {
+        self.for_cells(range, |c| {
+            let list = &self.entries[self.starts[c] as usize..self.starts[c + 1] as usize];
+            let above = list.partition_point(|&b| b as usize <= a);
+            for &b in &list[above..] {
+                if self.first_shared_cell(a, b as usize) == c {
+                    consider(a, b as usize, found);
                 }
             }
-            found
         });
-        merge_found_parts(in_cells, with_oversized)
+        for &o in self.oversized.iter().filter(|&&o| o as usize > a) {
+            consider(a, o as usize, found);
+        }
     }
 
     /// The cell index of the lowest cell two bodies' ranges share (both in cells).
@@ -182,5 +203,61 @@ impl CellList {
             + self.ranges.capacity() * std::mem::size_of::<Option<CellRange>>()
             + self.oversized.capacity() * 4
             + self.present.capacity()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+
+    /// Boxes of many sizes (a few spanning more than eight cells), some bodies left out and
+    /// some asleep, against the test of every pair.
+    #[test]
+    fn pairs_match_every_pair_tested() {
+        let mut seed = 12345u64;
+        let mut next = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let n = 1500;
+        let boxes: Vec<Aabb> = (0..n)
+            .map(|k: usize| {
+                let centre = DVec3::new(next(), next(), next()) * 60.0;
+                let half = if k.is_multiple_of(97) {
+                    20.0
+                } else {
+                    0.3 + 1.5 * next()
+                };
+                Aabb {
+                    min: centre - DVec3::splat(half),
+                    max: centre + DVec3::splat(half),
+                }
+            })
+            .collect();
+        let present: Vec<bool> = (0..n).map(|k| k % 13 != 5).collect();
+        let awake: Vec<bool> = (0..n).map(|k| k % 3 != 0).collect();
+        let keep = |i: usize, j: usize| !(i + j).is_multiple_of(11);
+        let mut cells = CellList::default();
+        assert!(cells.build(&boxes, &present, 4.0, 1 << 20));
+        assert!(!cells.oversized.is_empty());
+        let (pairs, _) = cells.pairs_with_awake(&awake, &boxes, keep);
+        let mut expected = Vec::new();
+        for i in 0..n {
+            for j in i + 1..n {
+                if present[i]
+                    && present[j]
+                    && (awake[i] || awake[j])
+                    && boxes[i].overlaps(&boxes[j])
+                    && keep(i, j)
+                {
+                    expected.push((i as u32, j as u32));
+                }
+            }
+        }
+        assert!(expected.len() > 1000, "{}", expected.len());
+        assert_eq!(pairs, expected);
     }
 }

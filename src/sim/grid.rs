@@ -352,7 +352,7 @@ pub(super) fn merge_found_parts(
 }
 
 /// The chunks' pairs, sorted and each once, and their box tests summed.
-fn merge_found(chunks: Vec<Found>) -> Found {
+pub(super) fn merge_found(chunks: Vec<Found>) -> Found {
     let tested = chunks.iter().map(|c| c.1).sum();
     let mut pairs: Vec<(u32, u32)> = chunks.into_iter().flat_map(|c| c.0).collect();
     pairs.sort_unstable();

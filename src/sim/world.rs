@@ -20,6 +20,9 @@ use super::stats::{Stage, StepStats, Stopwatch};
 use super::step_context::StepContext;
 use glam::DVec3;
 
+/// Scenes with this many bodies step inside the thread pool (see [`World::soft_step`]).
+const IN_POOL_BODIES: usize = 64;
+
 #[derive(Debug, Clone)]
 pub struct World {
     /// Meshes, each shared by every body that uses it.
@@ -111,6 +114,12 @@ impl World {
 
     /// The soft-step solver: collide once, solve and integrate in substeps, then the pose check.
     fn soft_step(&mut self, ctx: &StepContext) -> StepStats {
+        if self.bodies.len() >= IN_POOL_BODIES && rayon::current_thread_index().is_none() {
+            // From outside the thread pool every parallel loop that splits would hand its work
+            // over cold (wake a worker, wait on it); inside it they split hot. One hand-over per
+            // step instead of one per loop (pile-200: four passes of every colour per substep).
+            return rayon::scope(|_| self.soft_step(ctx));
+        }
         let mut stats = StepStats::default();
         let mut watch = Stopwatch::new();
         let scene = Scene {

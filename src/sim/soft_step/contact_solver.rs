@@ -12,6 +12,7 @@ use super::manifold::{GROUND, MAX_POINTS, Manifold, ManifoldPoint};
 use super::softness::Softness;
 use super::solver_body::SolverBody;
 use glam::{DQuat, DVec3};
+use rayon::prelude::*;
 
 /// One direction `d` of a contact's Jacobian, kept for the step: the angular parts `r_i x d`
 /// and the angular response `I_i^-1 (r_i x d)` to a unit impulse (the arms and inertias are
@@ -59,7 +60,7 @@ impl Direction {
     }
 }
 
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ContactPoint {
     /// Arms from the centres of mass to the point, world space, at the start of the step.
     pub r1: DVec3,
@@ -343,7 +344,9 @@ fn friction_at(
 }
 
 /// Builds the contact constraints of this step's manifolds into `constraints` and `points`
-/// (cleared first), warm-started from `cache`; `poses[i].0` is body i's centre of mass.
+/// (cleared first), warm-started from `cache`; `poses[i].0` is body i's centre of mass. Each
+/// manifold's constraint, then its points, are built on their own: in parallel when there are
+/// enough of them.
 pub fn prepare(
     manifolds: &[Manifold],
     poses: &[(DVec3, DQuat)],
@@ -352,60 +355,105 @@ pub fn prepare(
     params: &ContactParams,
     (constraints, points): (&mut Vec<ContactConstraint>, &mut Vec<ContactPoint>),
 ) {
+    const PARALLEL_MANIFOLDS: usize = 512;
     let ground = bodies.len() - 1;
-    constraints.clear();
-    points.clear();
-    for m in manifolds {
+    let centre = |i: usize| (i != ground).then(|| poses[i].0);
+    let constraint = |m: &Manifold, first: usize| {
         let i = if m.body1 == GROUND { ground } else { m.body1 };
-        let j = m.body2;
-        let (b1, b2) = (&bodies[i], &bodies[j]);
-        let n = m.normal;
-        let gravity_on = |b: &SolverBody| {
-            if b.inverse_mass > 0.0 {
-                params.gravity
-            } else {
-                DVec3::ZERO
-            }
-        };
-        let softness = if b1.inverse_mass == 0.0 || b2.inverse_mass == 0.0 {
-            params.static_softness
-        } else {
-            params.softness
-        };
         let cached = cache.lookup((m.body1, m.body2));
-        let (x1, x2) = ((i != ground).then(|| poses[i].0), poses[j].0);
-        let friction = friction_at(m.points(), (b1, x1), (b2, x2), n, params.friction, cached);
+        let ends = (
+            (&bodies[i], centre(i)),
+            (&bodies[m.body2], poses[m.body2].0),
+        );
+        manifold_constraint(m, (i, first), ends, params, cached)
+    };
+    // A manifold's points (the first `count` of the array; owned, so both paths can take them).
+    let points_of = |m: &Manifold, c: &ContactConstraint| {
+        let cached = cache.lookup((m.body1, m.body2));
+        let (x1, x2) = (centre(c.body1), poses[c.body2].0);
+        let (b1, b2) = (&bodies[c.body1], &bodies[c.body2]);
         // Points nearer than a fifth of the patch radius are taken for the same point.
-        let reach = 0.2 * friction.twist_radius + 1e-6;
-        let first = points.len();
-        for mp in m.points() {
+        let reach = 0.2 * c.friction.twist_radius + 1e-6;
+        let mut out = [ContactPoint::default(); MAX_POINTS];
+        for (slot, mp) in out.iter_mut().zip(m.points()) {
             let (r1, r2) = (x1.map_or(DVec3::ZERO, |x| mp.point - x), mp.point - x2);
-            let (along_normal, normal_mass) = Direction::new(b1, r1, b2, r2, n);
-            points.push(ContactPoint {
+            let (along_normal, normal_mass) = Direction::new(b1, r1, b2, r2, c.normal);
+            *slot = ContactPoint {
                 r1,
                 r2,
                 along_normal,
                 normal_mass,
                 separation: mp.separation,
                 normal_impulse: cached.map_or(0.0, |c| c.normal_impulse(mp.key, mp.point, reach)),
-                restitution_impulse: 0.0,
-                max_normal_impulse: 0.0,
-                impact_energy: 0.0,
                 key: mp.key,
-            });
+                ..ContactPoint::default()
+            };
         }
-        constraints.push(ContactConstraint {
-            body1: i,
-            body2: j,
-            normal: n,
-            friction,
-            restitution: params.restitution,
-            restitution_threshold: params.restitution_threshold,
-            normal_acceleration: n.dot(gravity_on(b2) - gravity_on(b1)),
-            softness,
-            first,
-            count: points.len() - first,
-        });
+        out.into_iter().take(m.points().len())
+    };
+    let firsts = manifolds.iter().scan(0, |next, m| {
+        let first = *next;
+        *next += m.points().len();
+        Some(first)
+    });
+    constraints.clear();
+    points.clear();
+    if manifolds.len() < PARALLEL_MANIFOLDS {
+        constraints.extend(manifolds.iter().zip(firsts).map(|(m, f)| constraint(m, f)));
+        let pairs = manifolds.iter().zip(constraints.iter());
+        points.extend(pairs.flat_map(|(m, c)| points_of(m, c)));
+        return;
+    }
+    let firsts: Vec<usize> = firsts.collect();
+    constraints.par_extend(
+        (manifolds, &firsts[..])
+            .into_par_iter()
+            .with_min_len(256)
+            .map(|(m, &first)| constraint(m, first)),
+    );
+    points.par_extend(
+        (manifolds, &constraints[..])
+            .into_par_iter()
+            .with_min_len(256)
+            .flat_map_iter(|(m, c)| points_of(m, c)),
+    );
+}
+
+/// Manifold `m`'s constraint between solver bodies `i` (the ground's index for the ground) and
+/// `m.body2`, its points starting at `first`; each end is a solver body with its centre of mass
+/// (none for the ground).
+fn manifold_constraint(
+    m: &Manifold,
+    (i, first): (usize, usize),
+    ((b1, x1), (b2, x2)): ((&SolverBody, Option<DVec3>), (&SolverBody, DVec3)),
+    params: &ContactParams,
+    cached: Option<&CachedManifold>,
+) -> ContactConstraint {
+    let n = m.normal;
+    let gravity_on = |b: &SolverBody| {
+        if b.inverse_mass > 0.0 {
+            params.gravity
+        } else {
+            DVec3::ZERO
+        }
+    };
+    let softness = if b1.inverse_mass == 0.0 || b2.inverse_mass == 0.0 {
+        params.static_softness
+    } else {
+        params.softness
+    };
+    let friction = friction_at(m.points(), (b1, x1), (b2, x2), n, params.friction, cached);
+    ContactConstraint {
+        body1: i,
+        body2: m.body2,
+        normal: n,
+        friction,
+        restitution: params.restitution,
+        restitution_threshold: params.restitution_threshold,
+        normal_acceleration: n.dot(gravity_on(b2) - gravity_on(b1)),
+        softness,
+        first,
+        count: m.points().len(),
     }
 }
 

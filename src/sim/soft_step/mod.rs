@@ -295,10 +295,17 @@ impl SoftStep {
                 .iter()
                 .map(|b| motion_bound(b, self.radii[b.shape], gravity, dt) + SPECULATIVE_DISTANCE),
         );
+        let radii = &self.radii;
         loop {
             let view = &*bodies;
             let keep = |i: usize, j: usize| {
-                may_collide(&view[i], &view[j]) && !(view[i].asleep && view[j].asleep)
+                let (a, b) = (&view[i], &view[j]);
+                may_collide(a, b)
+                    && !(a.asleep && b.asleep)
+                    && spheres_reach(
+                        (a, radii[a.shape] + margins[i]),
+                        (b, radii[b.shape] + margins[j]),
+                    )
             };
             let pairs =
                 broad.speculative_pairs(view, shapes, margins, keep, &mut stats.pairs_tested);
@@ -571,6 +578,15 @@ impl SoftStep {
     }
 }
 
+/// Whether the bounding spheres of two bodies, each grown by its reach, overlap. The boxes of
+/// tumbling bodies overlap at corners the spheres do not reach: in pile-10000 the spheres drop
+/// half of the candidate pairs, and a pair they drop is further apart than the narrow phase
+/// looks, so no manifold is lost.
+fn spheres_reach((a, ra): (&RigidBody, f64), (b, rb): (&RigidBody, f64)) -> bool {
+    let reach = ra + rb;
+    (a.position - b.position).length_squared() <= reach * reach
+}
+
 /// The grab's impulse over a substep, on the solver's velocities.
 fn pull(grab: &Grab, bodies: &[RigidBody], solver_bodies: &mut [SolverBody], h: f64) {
     let (Some(body), Some(sb)) = (bodies.get(grab.body), solver_bodies.get_mut(grab.body)) else {
@@ -659,5 +675,56 @@ impl Workspace {
             sb.delta_position = body.position - p0;
             sb.delta_rotation = manifold::delta_rotation(q0, body.orientation);
         });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::assets;
+
+    /// The bounding-sphere filter drops only pairs the narrow phase finds nothing for: bodies of
+    /// the three generated shapes at random orientations and distances around touching.
+    #[test]
+    fn sphere_filter_keeps_every_pair_with_a_manifold() {
+        let shapes: Vec<Shape> = [
+            assets::cuboid(DVec3::new(1.5, 0.75, 1.0)),
+            assets::tetrahedron(1.5),
+            assets::octahedron(DVec3::splat(1.2)),
+        ]
+        .iter()
+        .map(|mesh| Shape::from_tet_mesh(mesh).unwrap())
+        .collect();
+        let radii: Vec<f64> = shapes.iter().map(|s| s.bounding_radius()).collect();
+        let mut seed = 7u64;
+        let mut next = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut found, mut filtered) = (0, 0);
+        for k in 0..4000 {
+            let (s1, s2) = (k % 3, (k / 3) % 3);
+            let turn = |v: DVec3| DQuat::from_scaled_axis(3.0 * v);
+            let mut unit = || DVec3::new(next(), next(), next()) * 2.0 - DVec3::ONE;
+            let direction = unit().normalize_or(DVec3::X);
+            let (q1, q2) = (turn(unit()), turn(unit()));
+            let distance = (radii[s1] + radii[s2]) * (0.3 + next());
+            let a = RigidBody::on_shape(&shapes[s1], s1, 1.0, false, DVec3::ZERO, q1);
+            let b = RigidBody::on_shape(&shapes[s2], s2, 1.0, false, direction * distance, q2);
+            let prediction = 0.2 * next();
+            let mut state = manifold::PairState::default();
+            let touches = body_manifold((0, &a), (1, &b), &shapes, prediction, &mut state);
+            let half = 0.5 * prediction;
+            let kept = spheres_reach((&a, radii[s1] + half), (&b, radii[s2] + half));
+            found += usize::from(touches.is_some());
+            filtered += usize::from(!kept);
+            assert!(
+                kept || touches.is_none(),
+                "pair {k} dropped with a manifold"
+            );
+        }
+        assert!(found > 500 && filtered > 300, "{found} {filtered}");
     }
 }

@@ -19,19 +19,33 @@ use glam::DVec3;
 /// Gauss-Seidel passes of the restitution targets.
 pub const ITERATIONS: usize = 8;
 
-/// Drives every bouncing point's normal velocity to its target ([`ITERATIONS`] passes).
+/// Drives every bouncing point's normal velocity to its target ([`ITERATIONS`] passes over the
+/// manifolds that have one: in a pile at rest, none).
 pub fn apply(
     constraints: &[ContactConstraint],
     points: &mut [ContactPoint],
     bodies: &mut [SolverBody],
 ) {
+    let bounces = |c: &ContactConstraint, p: &ContactPoint| {
+        let threshold = c.restitution_threshold;
+        c.restitution > 0.0
+            && p.impact_energy > 0.5 * threshold * threshold
+            && p.max_normal_impulse != 0.0
+    };
+    let bouncing: Vec<&ContactConstraint> = constraints
+        .iter()
+        .filter(|c| {
+            points[c.first..c.first + c.count]
+                .iter()
+                .any(|p| bounces(c, p))
+        })
+        .collect();
     for _ in 0..ITERATIONS {
-        for c in constraints.iter().filter(|c| c.restitution > 0.0) {
+        for &c in &bouncing {
             let (b1, b2) = pair_mut(bodies, c.body1, c.body2);
             let n = c.normal;
-            let threshold = c.restitution_threshold;
             for p in &mut points[c.first..c.first + c.count] {
-                if p.impact_energy <= 0.5 * threshold * threshold || p.max_normal_impulse == 0.0 {
+                if !bounces(c, p) {
                     continue;
                 }
                 let moved = b2.point_displacement(p.r2) - b1.point_displacement(p.r1);
