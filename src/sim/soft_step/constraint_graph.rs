@@ -97,9 +97,10 @@ impl Colours {
     }
 }
 
-/// The solver bodies and contact points, shared by the threads solving one colour. Within a
-/// colour no two constraints share a moving body or a point; bodies that do not move (the
-/// ground, fixed and sleeping bodies) are shared but only read.
+/// The solver bodies and contact points, shared by the threads solving one colour (or the
+/// joint groups). Within a colour no two constraints share a moving body or a point, and no two
+/// joint groups share a moving body; bodies that do not move (the ground, fixed and sleeping
+/// bodies) are shared but only read.
 pub struct Shared<'a, T> {
     ptr: *mut T,
     len: usize,
@@ -143,6 +144,16 @@ impl<T: Copy> Shared<'_, T> {
 }
 
 impl<T> Shared<'_, T> {
+    /// Element `i`.
+    ///
+    /// # Safety
+    /// No other thread writes element `i` meanwhile.
+    pub unsafe fn get(&self, i: usize) -> &T {
+        assert!(i < self.len);
+        // SAFETY: in bounds; no concurrent writer by the caller's contract.
+        unsafe { &*self.ptr.add(i) }
+    }
+
     /// Element `i`, mutably.
     ///
     /// # Safety

@@ -7,10 +7,12 @@
 //! direct solve passes it in one. Groups larger than [`MAX_BLOCK`] rows fall back to
 //! Gauss-Seidel ([`super::joint_solver`]).
 
+use super::constraint_graph::Shared;
 use super::solver_body::SolverBody;
 use crate::sim::body::RigidBody;
 use crate::sim::constraint::DistanceConstraint;
-use glam::DVec3;
+use glam::{DMat3, DVec3};
+use rayon::prelude::*;
 
 /// Largest group solved directly (rows of one connected group of bodies).
 pub const MAX_BLOCK: usize = 48;
@@ -177,8 +179,7 @@ fn records_of(constraints: &[DistanceConstraint]) -> Vec<DistanceRecord> {
     out
 }
 
-fn geometry(r: &DistanceRecord, poses: &[RigidBody]) -> Option<Geometry> {
-    let (a, b) = (&poses[r.body1], &poses[r.body2]);
+fn geometry(r: &DistanceRecord, a: &RigidBody, b: &RigidBody) -> Option<Geometry> {
     let r1 = a.orientation * r.local1;
     let r2 = b.orientation * r.local2;
     let d = (b.position + r2) - (a.position + r1);
@@ -191,13 +192,14 @@ fn geometry(r: &DistanceRecord, poses: &[RigidBody]) -> Option<Geometry> {
     })
 }
 
-/// `K_ij`: how a unit impulse of row j changes row i's rate (shared bodies only).
+/// `K_ij`: how a unit impulse of row j changes row i's rate (shared bodies only); `inverse(b)`
+/// is body b's inverse mass and world inverse inertia.
 fn coupling(
     ri: &DistanceRecord,
     gi: &Geometry,
     rj: &DistanceRecord,
     gj: &Geometry,
-    bodies: &[SolverBody],
+    inverse: &impl Fn(usize) -> (f64, DMat3),
 ) -> f64 {
     let mut k = 0.0;
     for (bi, si, ai) in [(ri.body1, -1.0, gi.r1), (ri.body2, 1.0, gi.r2)] {
@@ -205,9 +207,9 @@ fn coupling(
             if bi != bj {
                 continue;
             }
-            let b = &bodies[bi];
+            let (inverse_mass, inverse_inertia) = inverse(bi);
             let (ui, uj) = (ai.cross(gi.axis), aj.cross(gj.axis));
-            k += si * sj * (b.inverse_mass * gi.axis.dot(gj.axis) + ui.dot(b.inverse_inertia * uj));
+            k += si * sj * (inverse_mass * gi.axis.dot(gj.axis) + ui.dot(inverse_inertia * uj));
         }
     }
     k
@@ -384,91 +386,160 @@ impl JointBlocks {
         inv_h: f64,
         use_bias: bool,
     ) {
-        let JointBlocks {
-            records,
-            groups,
-            scratch,
-        } = self;
-        for &(start, end) in groups.iter() {
-            let records = &records[start..end];
-            if records.len() > MAX_BLOCK || !scratch.load_geometry(records, poses) {
-                continue;
-            }
-            let n = records.len();
-            scratch.reset(n);
-            for (i, (r, g)) in records.iter().zip(&scratch.geometries).enumerate() {
-                let (b1, b2) = (&bodies[r.body1], &bodies[r.body2]);
-                scratch.u[i] = g
-                    .axis
-                    .dot(b2.point_velocity(g.r2) - b1.point_velocity(g.r1));
-                let allowed = |gap: f64| {
-                    if gap > 0.0 || use_bias {
-                        gap * inv_h
-                    } else {
-                        0.0
-                    }
-                };
-                (scratch.lo[i], scratch.hi[i]) = if r.lower == r.upper {
-                    let rate = if use_bias {
-                        (r.lower - g.length) * inv_h
-                    } else {
-                        0.0
-                    };
-                    (rate, rate)
-                } else {
-                    (-allowed(g.length - r.lower), allowed(r.upper - g.length))
-                };
-            }
-            fill_matrix(&mut scratch.k, records, &scratch.geometries, bodies);
-            if scratch.solve_ranges(n) {
-                apply(records, &scratch.geometries, &scratch.lambda, bodies);
-            }
-        }
+        let bodies = Shared::new(bodies);
+        self.for_each_group(|scratch, records| {
+            // SAFETY: groups share no moving body; poses are only read.
+            unsafe { scratch.solve_group_velocities(records, poses, &bodies, inv_h, use_bias) };
+            false
+        });
     }
 
     /// Positions: each group's violated rows are moved back onto their bounds, through the
     /// bodies' masses, as an impulse would move them in unit time (velocities untouched).
     /// Returns whether any pose moved.
     pub fn project_positions(&mut self, poses: &mut [RigidBody], bodies: &[SolverBody]) -> bool {
+        let poses = Shared::new(poses);
+        self.for_each_group(|scratch, records| {
+            // SAFETY: groups share no moving body, and only moving bodies' poses are written.
+            unsafe { scratch.project_group(records, &poses, bodies) }
+        })
+    }
+
+    /// Runs `f` on each group solved directly, with a scratch of its own: on the calling thread
+    /// for a few groups, else on all threads (groups share no moving body, so the result is
+    /// the same). True if `f` was for any group.
+    fn for_each_group(
+        &mut self,
+        f: impl Fn(&mut Scratch, &[DistanceRecord]) -> bool + Sync,
+    ) -> bool {
+        const PARALLEL_GROUPS: usize = 64;
         let JointBlocks {
             records,
             groups,
             scratch,
         } = self;
-        let mut moved = false;
-        for &(start, end) in groups.iter() {
-            let records = &records[start..end];
-            if records.len() > MAX_BLOCK || !scratch.load_geometry(records, poses) {
-                continue;
+        let direct = |&(start, end): &(usize, usize)| end - start <= MAX_BLOCK;
+        let records = &records[..];
+        if groups.len() < PARALLEL_GROUPS {
+            let mut any = false;
+            for &(start, end) in groups.iter().filter(|g| direct(g)) {
+                any |= f(scratch, &records[start..end]);
             }
-            let n = records.len();
-            let inside = records
-                .iter()
-                .zip(&scratch.geometries)
-                .all(|(r, g)| g.length >= r.lower && g.length <= r.upper);
-            if inside {
-                continue;
-            }
-            scratch.reset(n);
-            for (i, (r, g)) in records.iter().zip(&scratch.geometries).enumerate() {
-                (scratch.u[i], scratch.lo[i], scratch.hi[i]) = (g.length, r.lower, r.upper);
-            }
-            fill_matrix(&mut scratch.k, records, &scratch.geometries, bodies);
-            if scratch.solve_ranges(n) {
-                shift(records, &scratch.geometries, &scratch.lambda, poses, bodies);
-                moved = true;
-            }
+            return any;
         }
-        moved
+        groups
+            .par_iter()
+            .with_min_len(16)
+            .filter(|g| direct(g))
+            .map_init(Scratch::default, |scratch, &(start, end)| {
+                f(scratch, &records[start..end])
+            })
+            .reduce(|| false, |a, b| a || b)
     }
 }
 
 impl Scratch {
-    /// Each record's geometry at the current poses; false if a record has none.
-    fn load_geometry(&mut self, records: &[DistanceRecord], poses: &[RigidBody]) -> bool {
+    /// [`JointBlocks::solve_velocities`] for one group.
+    ///
+    /// # Safety
+    /// No other thread touches the group's moving bodies meanwhile.
+    unsafe fn solve_group_velocities(
+        &mut self,
+        records: &[DistanceRecord],
+        poses: &[RigidBody],
+        bodies: &Shared<SolverBody>,
+        inv_h: f64,
+        use_bias: bool,
+    ) {
+        if !self.load_geometry(records, |i| &poses[i]) {
+            return;
+        }
+        let n = records.len();
+        self.reset(n);
+        for (i, (r, g)) in records.iter().zip(&self.geometries).enumerate() {
+            // SAFETY: the group's bodies (caller's contract).
+            let (b1, b2) = unsafe { (bodies.get(r.body1), bodies.get(r.body2)) };
+            self.u[i] = g
+                .axis
+                .dot(b2.point_velocity(g.r2) - b1.point_velocity(g.r1));
+            let allowed = |gap: f64| {
+                if gap > 0.0 || use_bias {
+                    gap * inv_h
+                } else {
+                    0.0
+                }
+            };
+            (self.lo[i], self.hi[i]) = if r.lower == r.upper {
+                let rate = if use_bias {
+                    (r.lower - g.length) * inv_h
+                } else {
+                    0.0
+                };
+                (rate, rate)
+            } else {
+                (-allowed(g.length - r.lower), allowed(r.upper - g.length))
+            };
+        }
+        let inverse = |i: usize| {
+            // SAFETY: as above.
+            let b = unsafe { bodies.get(i) };
+            (b.inverse_mass, b.inverse_inertia)
+        };
+        fill_matrix(&mut self.k, records, &self.geometries, &inverse);
+        if self.solve_ranges(n) {
+            // SAFETY: as above.
+            unsafe { apply(records, &self.geometries, &self.lambda, bodies) };
+        }
+    }
+
+    /// [`JointBlocks::project_positions`] for one group; true if a pose moved.
+    ///
+    /// # Safety
+    /// No other thread touches the group's moving bodies meanwhile.
+    unsafe fn project_group(
+        &mut self,
+        records: &[DistanceRecord],
+        poses: &Shared<RigidBody>,
+        bodies: &[SolverBody],
+    ) -> bool {
+        // SAFETY: the group's poses are written only by this call (caller's contract).
+        if !self.load_geometry(records, |i| unsafe { poses.get(i) }) {
+            return false;
+        }
+        let n = records.len();
+        let inside = records
+            .iter()
+            .zip(&self.geometries)
+            .all(|(r, g)| g.length >= r.lower && g.length <= r.upper);
+        if inside {
+            return false;
+        }
+        self.reset(n);
+        for (i, (r, g)) in records.iter().zip(&self.geometries).enumerate() {
+            (self.u[i], self.lo[i], self.hi[i]) = (g.length, r.lower, r.upper);
+        }
+        let inverse = |i: usize| (bodies[i].inverse_mass, bodies[i].inverse_inertia);
+        fill_matrix(&mut self.k, records, &self.geometries, &inverse);
+        if !self.solve_ranges(n) {
+            return false;
+        }
+        // SAFETY: as above.
+        unsafe { shift(records, &self.geometries, &self.lambda, poses, bodies) };
+        true
+    }
+}
+
+impl Scratch {
+    /// Each record's geometry at the current poses (`pose(i)`: body i's); false if a record
+    /// has none.
+    fn load_geometry<'p>(
+        &mut self,
+        records: &[DistanceRecord],
+        pose: impl Fn(usize) -> &'p RigidBody,
+    ) -> bool {
         self.geometries.clear();
         for r in records {
-            match geometry(r, poses) {
+            match geometry(r, pose(r.body1), pose(r.body2)) {
                 Some(g) => self.geometries.push(g),
                 None => return false,
             }
@@ -481,7 +552,7 @@ fn fill_matrix(
     k: &mut [f64],
     records: &[DistanceRecord],
     geometries: &[Geometry],
-    bodies: &[SolverBody],
+    inverse: &impl Fn(usize) -> (f64, DMat3),
 ) {
     let n = records.len();
     for i in 0..n {
@@ -491,7 +562,7 @@ fn fill_matrix(
                 &geometries[i],
                 &records[j],
                 &geometries[j],
-                bodies,
+                inverse,
             );
             k[i * n + j] = v;
             k[j * n + i] = v;
@@ -499,27 +570,42 @@ fn fill_matrix(
     }
 }
 
-fn apply(
+/// The impulses `lambda` along the rows, on the group's moving bodies (the others, shared with
+/// other groups, are left alone: an impulse does not move them).
+///
+/// # Safety
+/// No other thread touches the group's moving bodies meanwhile.
+unsafe fn apply(
     records: &[DistanceRecord],
     geometries: &[Geometry],
     lambda: &[f64],
-    bodies: &mut [SolverBody],
+    bodies: &Shared<SolverBody>,
 ) {
     for ((r, g), &l) in records.iter().zip(geometries).zip(lambda) {
         if l == 0.0 {
             continue;
         }
         let p = l * g.axis;
-        bodies[r.body1].apply(g.r1, -p);
-        bodies[r.body2].apply(g.r2, p);
+        for (index, arm, impulse) in [(r.body1, g.r1, -p), (r.body2, g.r2, p)] {
+            // SAFETY: read, then written only if it moves: the caller's contract.
+            if unsafe { bodies.get(index) }.is_static() {
+                continue;
+            }
+            unsafe { bodies.get_mut(index) }.apply(arm, impulse);
+        }
     }
 }
 
-fn shift(
+/// The position change the impulses `lambda` would make in unit time, on the group's moving
+/// bodies.
+///
+/// # Safety
+/// No other thread touches the group's moving bodies meanwhile.
+unsafe fn shift(
     records: &[DistanceRecord],
     geometries: &[Geometry],
     lambda: &[f64],
-    poses: &mut [RigidBody],
+    poses: &Shared<RigidBody>,
     bodies: &[SolverBody],
 ) {
     for ((r, g), &l) in records.iter().zip(geometries).zip(lambda) {
@@ -532,7 +618,8 @@ fn shift(
             if b.inverse_mass == 0.0 {
                 continue;
             }
-            let pose = &mut poses[index];
+            // SAFETY: a body with mass to move belongs to this group only.
+            let pose = unsafe { poses.get_mut(index) };
             pose.position += b.inverse_mass * impulse;
             let turn = b.inverse_inertia * arm.cross(impulse);
             pose.orientation = crate::sim::integrate::rotate_by(pose.orientation, turn, 1.0);

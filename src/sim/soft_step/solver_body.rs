@@ -43,6 +43,11 @@ impl SolverBody {
         }
     }
 
+    /// Whether impulses leave it where it is (the ground, fixed and sleeping bodies).
+    pub fn is_static(&self) -> bool {
+        self.inverse_mass == 0.0 && self.inverse_inertia == DMat3::ZERO
+    }
+
     /// Velocity of the material point at world arm `r`.
     #[inline]
     pub fn point_velocity(&self, r: DVec3) -> DVec3 {
