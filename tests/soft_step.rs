@@ -259,6 +259,47 @@ fn a_resting_stack_sleeps_and_a_dropped_box_wakes_it() {
     assert!((top - 3.5).abs() < 0.1, "the dropped box rests at {top}");
 }
 
+/// A scene whose every body sleeps skips its stages (no pair, no manifold) and stays exactly
+/// where it is; a settings change wakes it and its contacts come back.
+#[test]
+fn a_scene_at_rest_costs_nothing_until_woken() {
+    let mut world = boxes(3, settling(0.02));
+    let mut steps = 0;
+    while !world.bodies.iter().all(|b| b.asleep) {
+        world.step();
+        steps += 1;
+        assert!(steps < 1000, "the stack never fell asleep");
+    }
+    let poses: Vec<_> = world
+        .bodies
+        .iter()
+        .map(|b| (b.position, b.orientation))
+        .collect();
+    for _ in 0..50 {
+        let stats = world.step();
+        assert_eq!(stats.asleep, 3);
+        assert_eq!(
+            (stats.pairs_tested, stats.narrow_phase_queries),
+            (0, 0),
+            "a scene at rest looked for contacts"
+        );
+        assert_eq!(stats.contacts + stats.ground_contacts, 0);
+    }
+    let after: Vec<_> = world
+        .bodies
+        .iter()
+        .map(|b| (b.position, b.orientation))
+        .collect();
+    assert_eq!(poses, after);
+    world.settings.friction = 0.6;
+    let stats = world.step();
+    assert_eq!(stats.asleep, 0, "a settings change wakes the scene");
+    assert!(
+        stats.ground_contacts == 1 && stats.contacts == 2,
+        "{stats:?}"
+    );
+}
+
 /// Two boxes resting side by side, 0.01 apart (inside each other's speculative margin, not
 /// touching), come to rest at different times: each falls asleep once and stays asleep (a body
 /// at rest does not wake its neighbour; before, each woke the other as it fell asleep, forever).

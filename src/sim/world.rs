@@ -114,10 +114,15 @@ impl World {
 
     /// The soft-step solver: collide once, solve and integrate in substeps, then the pose check.
     fn soft_step(&mut self, ctx: &StepContext) -> StepStats {
-        if self.bodies.len() >= IN_POOL_BODIES && rayon::current_thread_index().is_none() {
+        let moving = || self.bodies.iter().any(|b| b.is_awake());
+        if self.bodies.len() >= IN_POOL_BODIES
+            && rayon::current_thread_index().is_none()
+            && moving()
+        {
             // From outside the thread pool every parallel loop that splits would hand its work
             // over cold (wake a worker, wait on it); inside it they split hot. One hand-over per
             // step instead of one per loop (pile-200: four passes of every colour per substep).
+            // A scene with nothing awake stays here: its step has no loop to split.
             return rayon::scope(|_| self.soft_step(ctx));
         }
         let mut stats = StepStats::default();

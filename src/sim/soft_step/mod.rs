@@ -205,6 +205,10 @@ impl SoftStep {
     ) {
         let mut scene = scene;
         self.wake_on_demand(ctx, &mut scene);
+        if at_rest(&scene) {
+            self.rest(scene.bodies, stats);
+            return;
+        }
         let pairs = self.broad_phase(ctx, &mut scene, broad, watch, stats);
         self.narrow_phase(scene.bodies, scene.shapes, broad, &pairs, watch, stats);
         watch.enter(Stage::Solve);
@@ -269,6 +273,18 @@ impl SoftStep {
                 std::iter::once(grab.body),
             );
         }
+    }
+
+    /// The step of a scene at rest: what a full step would leave with no body awake (no
+    /// manifolds, no pair states; sleeping bodies keep their cached impulses), without the
+    /// stages that would find nothing.
+    fn rest(&mut self, bodies: &[RigidBody], stats: &mut StepStats) {
+        let w = &mut self.work;
+        w.manifolds.clear();
+        w.contacts.clear();
+        w.points.clear();
+        self.pair_states.keep(&[], Vec::new());
+        stats.asleep = bodies.iter().filter(|b| b.asleep).count();
     }
 
     /// Candidate pairs: bodies whose boxes, grown by how far they can travel this step,
@@ -576,6 +592,14 @@ impl SoftStep {
     pub fn manifolds(&self) -> &[Manifold] {
         &self.work.manifolds
     }
+}
+
+/// Whether nothing in the scene can move this step: no body awake, none grabbed, and no
+/// constraints (their rows are prepared even between sleeping bodies).
+fn at_rest(scene: &Scene) -> bool {
+    scene.grab.is_none()
+        && scene.constraints.is_empty()
+        && !scene.bodies.iter().any(|b| b.is_awake())
 }
 
 /// Whether the bounding spheres of two bodies, each grown by its reach, overlap. The boxes of
