@@ -185,6 +185,11 @@ impl RigidBody {
     }
 }
 
+/// Whether any of `bodies` is awake: a scene with none cannot move by itself.
+pub fn any_awake(bodies: &[RigidBody]) -> bool {
+    bodies.iter().any(RigidBody::is_awake)
+}
+
 /// Whether two bodies can collide: not when either is frozen, nor when both are fixed.
 pub fn may_collide(a: &RigidBody, b: &RigidBody) -> bool {
     !(a.quarantined || b.quarantined || a.fixed && b.fixed)

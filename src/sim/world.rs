@@ -2,7 +2,7 @@
 //! them with [`World::step`], which reads as the list of its stages.
 
 use super::aabb::{Aabb, body_aabb};
-use super::body::{RigidBody, may_collide};
+use super::body::{RigidBody, any_awake, may_collide};
 use super::broad_phase::BroadPhase;
 use super::constraint::DistanceConstraint;
 use super::coursework::contact_stage::{
@@ -114,10 +114,9 @@ impl World {
 
     /// The soft-step solver: collide once, solve and integrate in substeps, then the pose check.
     fn soft_step(&mut self, ctx: &StepContext) -> StepStats {
-        let moving = || self.bodies.iter().any(|b| b.is_awake());
         if self.bodies.len() >= IN_POOL_BODIES
             && rayon::current_thread_index().is_none()
-            && moving()
+            && any_awake(&self.bodies)
         {
             // From outside the thread pool every parallel loop that splits would hand its work
             // over cold (wake a worker, wait on it); inside it they split hot. One hand-over per

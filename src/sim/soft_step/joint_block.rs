@@ -407,7 +407,7 @@ impl JointBlocks {
 
     /// Runs `f` on each group solved directly, with a scratch of its own: on the calling thread
     /// for a few groups, else on all threads (groups share no moving body, so the result is
-    /// the same). True if `f` was for any group.
+    /// the same). True if `f` returned true for any group.
     fn for_each_group(
         &mut self,
         f: impl Fn(&mut Scratch, &[DistanceRecord]) -> bool + Sync,

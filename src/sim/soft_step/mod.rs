@@ -19,7 +19,7 @@ pub mod sleep;
 pub mod softness;
 pub mod solver_body;
 
-use super::body::{RigidBody, may_collide};
+use super::body::{RigidBody, any_awake, may_collide};
 use super::broad_phase::BroadPhase;
 use super::constraint::DistanceConstraint;
 use super::grab::Grab;
@@ -597,9 +597,7 @@ impl SoftStep {
 /// Whether nothing in the scene can move this step: no body awake, none grabbed, and no
 /// constraints (their rows are prepared even between sleeping bodies).
 fn at_rest(scene: &Scene) -> bool {
-    scene.grab.is_none()
-        && scene.constraints.is_empty()
-        && !scene.bodies.iter().any(|b| b.is_awake())
+    scene.grab.is_none() && scene.constraints.is_empty() && !any_awake(scene.bodies)
 }
 
 /// Whether the bounding spheres of two bodies, each grown by its reach, overlap. The boxes of
