@@ -8,6 +8,7 @@
 pub mod aabb;
 pub mod body;
 pub mod broad_phase;
+pub mod buffer;
 pub mod cell_list;
 pub mod constraint;
 pub mod coursework;

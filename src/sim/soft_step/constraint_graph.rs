@@ -22,10 +22,10 @@ pub struct Colours {
     runs: Vec<Range<usize>>,
     /// Whether the last run is the overflow (its constraints may share bodies).
     overflow: bool,
-    /// Scratch: each body's used colours, and each manifold's colour.
+    /// Scratch: each body's used colours, each manifold's colour and its place in colour order.
     used: Vec<u64>,
     colour_of: Vec<u8>,
-    sorted: Vec<Manifold>,
+    place: Vec<u32>,
 }
 
 impl Colours {
@@ -34,7 +34,7 @@ impl Colours {
     /// `bodies` is the number of bodies; `moving(i)` says whether the solver moves body `i`.
     pub fn colour(
         &mut self,
-        manifolds: &mut Vec<Manifold>,
+        manifolds: &mut [Manifold],
         bodies: usize,
         moving: impl Fn(usize) -> bool,
     ) {
@@ -64,19 +64,27 @@ impl Colours {
         self.reorder(manifolds, &counts);
     }
 
-    /// Stable counting sort of the manifolds by colour.
-    fn reorder(&mut self, manifolds: &mut Vec<Manifold>, counts: &[usize; COLOURS + 1]) {
-        let mut next = [0usize; COLOURS + 1];
+    /// Stable counting sort of the manifolds by colour, in place: each manifold's place is
+    /// counted first, then the permutation is applied cycle by cycle (4 bytes of scratch per
+    /// manifold instead of a second copy of them).
+    fn reorder(&mut self, manifolds: &mut [Manifold], counts: &[usize; COLOURS + 1]) {
+        let mut next = [0u32; COLOURS + 1];
         for c in 1..=COLOURS {
-            next[c] = next[c - 1] + counts[c - 1];
+            next[c] = next[c - 1] + counts[c - 1] as u32;
         }
-        self.sorted.clear();
-        self.sorted.extend_from_slice(manifolds);
-        for (m, &colour) in manifolds.iter().zip(&self.colour_of) {
-            self.sorted[next[colour as usize]] = *m;
+        self.place.clear();
+        self.place.extend(self.colour_of.iter().map(|&colour| {
+            let place = next[colour as usize];
             next[colour as usize] += 1;
+            place
+        }));
+        for i in 0..manifolds.len() {
+            while self.place[i] as usize != i {
+                let to = self.place[i] as usize;
+                manifolds.swap(i, to);
+                self.place.swap(i, to);
+            }
         }
-        std::mem::swap(manifolds, &mut self.sorted);
     }
 
     /// Runs `f` on every constraint, colour after colour (the constraints are in colour order,

@@ -11,6 +11,7 @@ use super::constraint_graph::{Colours, Shared, with_pair};
 use super::manifold::{GROUND, MAX_POINTS, Manifold, ManifoldPoint};
 use super::softness::Softness;
 use super::solver_body::SolverBody;
+use crate::sim::buffer;
 use glam::{DQuat, DVec3};
 use rayon::prelude::*;
 
@@ -190,8 +191,13 @@ impl ContactCache {
     ) {
         let sleeping =
             |(i, j): (usize, usize)| (i != GROUND && bodies[i].asleep) || bodies[j].asleep;
-        let mut old = std::mem::take(&mut self.entries);
-        old.retain(|(pair, _)| sleeping(*pair));
+        // One buffer: the sleepers' entries kept, this step's added after them.
+        self.entries.retain(|(pair, _)| sleeping(*pair));
+        let sleepers = self.entries.len();
+        let needed = sleepers + manifolds.len();
+        if self.entries.capacity() < needed {
+            self.entries.reserve_exact(needed + needed / 8 - sleepers);
+        }
         for (m, c) in manifolds.iter().zip(constraints) {
             let f = &c.friction;
             let mut cached = CachedManifold {
@@ -211,18 +217,20 @@ impl ContactCache {
             }
             self.entries.push(((m.body1, m.body2), cached));
         }
-        self.entries.sort_by_key(|(pair, _)| *pair);
         // A pair both collided and kept (a body fell asleep this step): the new entry wins.
-        let fresh = self.entries.len();
-        for entry in old {
-            if self.entries[..fresh]
-                .binary_search_by_key(&entry.0, |(pair, _)| *pair)
-                .is_err()
-            {
-                self.entries.push(entry);
-            }
-        }
-        self.entries.sort_by_key(|(pair, _)| *pair);
+        // Pairs are unique within each part, so an unstable sort gives the one order.
+        self.entries[sleepers..].sort_unstable_by_key(|(pair, _)| *pair);
+        let (old, fresh) = self.entries.split_at(sleepers);
+        let superseded: Vec<bool> = old
+            .iter()
+            .map(|(pair, _)| fresh.binary_search_by_key(pair, |(p, _)| *p).is_ok())
+            .collect();
+        let mut index = 0;
+        self.entries.retain(|_| {
+            index += 1;
+            !superseded.get(index - 1).copied().unwrap_or(false)
+        });
+        self.entries.sort_unstable_by_key(|(pair, _)| *pair);
     }
 
     pub fn heap_bytes(&self) -> usize {
@@ -396,8 +404,9 @@ pub fn prepare(
         *next += m.points().len();
         Some(first)
     });
-    constraints.clear();
-    points.clear();
+    let total = manifolds.iter().map(|m| m.points().len()).sum();
+    buffer::clear_for(constraints, manifolds.len());
+    buffer::clear_for(points, total);
     if manifolds.len() < PARALLEL_MANIFOLDS {
         constraints.extend(manifolds.iter().zip(firsts).map(|(m, f)| constraint(m, f)));
         let pairs = manifolds.iter().zip(constraints.iter());
@@ -411,12 +420,17 @@ pub fn prepare(
             .with_min_len(256)
             .map(|(m, &first)| constraint(m, first)),
     );
-    points.par_extend(
-        (manifolds, &constraints[..])
-            .into_par_iter()
-            .with_min_len(256)
-            .flat_map_iter(|(m, c)| points_of(m, c)),
-    );
+    // Each manifold's points written in place (collecting a flat map would hold them twice).
+    points.resize(total, ContactPoint::default());
+    let runs = buffer::runs(points, manifolds.iter().map(|m| m.points().len()));
+    (manifolds, &constraints[..], runs)
+        .into_par_iter()
+        .with_min_len(256)
+        .for_each(|(m, c, run)| {
+            for (slot, p) in run.iter_mut().zip(points_of(m, c)) {
+                *slot = p;
+            }
+        });
 }
 
 /// Manifold `m`'s constraint between solver bodies `i` (the ground's index for the ground) and

@@ -122,8 +122,13 @@ impl PairStates {
             .collect()
     }
 
-    /// Keeps this step's states of `pairs` for the next.
-    pub fn keep(&mut self, pairs: &[(u32, u32)], states: Vec<PairState>) {
+    /// Keeps this step's states of `pairs` for the next. The point buffers of pairs that are
+    /// not touching are freed: parry keeps the room a clip once needed (eight points on
+    /// average), 14 MiB at scatter-100000, where most candidate pairs do not touch.
+    pub fn keep(&mut self, pairs: &[(u32, u32)], mut states: Vec<PairState>) {
+        for state in states.iter_mut().filter(|s| s.points.is_empty()) {
+            state.points = Vec::new();
+        }
         self.pairs.clear();
         self.pairs.extend_from_slice(pairs);
         self.states = states;

@@ -21,6 +21,7 @@ pub mod solver_body;
 
 use super::body::{RigidBody, any_awake, may_collide};
 use super::broad_phase::BroadPhase;
+use super::buffer;
 use super::constraint::DistanceConstraint;
 use super::grab::Grab;
 use super::integrate::integrate_pose;
@@ -48,6 +49,8 @@ const JOINT_DAMPING_RATIO: f64 = 2.0;
 const MAX_PUSH_SPEED: f64 = 3.0;
 /// Points this far apart still count as contacts, whatever the speeds (units).
 const SPECULATIVE_DISTANCE: f64 = 0.02;
+/// Bodies or pairs whose manifolds are collected at once (see [`buffer::blocks`]).
+const MANIFOLD_BLOCK: usize = 16_384;
 
 /// What the soft-step solver carries from one step to the next: the impulses of the contact
 /// points and of the distance constraints (warm starting), and the buffers a step works in.
@@ -72,7 +75,8 @@ struct Workspace {
     margins: Vec<f64>,
     manifolds: Vec<Manifold>,
     bodies: Vec<SolverBody>,
-    before_restitution: Vec<SolverBody>,
+    /// Linear and angular velocity of each solved body before the restitution pass.
+    before_restitution: Vec<(DVec3, DVec3)>,
     /// Pose and energy of every body when the step began.
     start: Vec<(DVec3, DQuat)>,
     start_energy: Vec<f64>,
@@ -350,30 +354,32 @@ impl SoftStep {
         let manifolds = &mut self.work.manifolds;
         manifolds.clear();
         let boxes = broad.boxes();
-        manifolds.par_extend(
-            (0..bodies.len())
-                .into_par_iter()
-                .with_min_len(256)
-                .filter_map(|j| {
-                    let b = &bodies[j];
-                    let reaches = b.is_awake() && boxes[j].min.y - margins[j] <= 0.0;
-                    reaches.then(|| ground_manifold(j, b, &shapes[b.shape], margins[j]))?
-                }),
-        );
+        for range in buffer::blocks(bodies.len(), MANIFOLD_BLOCK) {
+            buffer::reserve_exact(manifolds, range.len());
+            manifolds.par_extend(range.into_par_iter().with_min_len(256).filter_map(|j| {
+                let b = &bodies[j];
+                let reaches = b.is_awake() && boxes[j].min.y - margins[j] <= 0.0;
+                reaches.then(|| ground_manifold(j, b, &shapes[b.shape], margins[j]))?
+            }));
+        }
         stats.ground_contacts = manifolds.len();
         let mut states = self.pair_states.take_for(pairs);
-        manifolds.par_extend(
-            pairs
-                .par_iter()
-                .zip(states.par_iter_mut())
-                .with_min_len(32)
-                .filter_map(|(&(i, j), state)| {
-                    let (i, j) = (i as usize, j as usize);
-                    let prediction = margins[i] + margins[j];
-                    let (a, b) = ((i, &bodies[i]), (j, &bodies[j]));
-                    body_manifold(a, b, shapes, prediction, state)
-                }),
-        );
+        for range in buffer::blocks(pairs.len(), MANIFOLD_BLOCK) {
+            buffer::reserve_exact(manifolds, range.len());
+            let (pairs, states) = (&pairs[range.clone()], &mut states[range]);
+            manifolds.par_extend(
+                pairs
+                    .par_iter()
+                    .zip(states.par_iter_mut())
+                    .with_min_len(32)
+                    .filter_map(|(&(i, j), state)| {
+                        let (i, j) = (i as usize, j as usize);
+                        let prediction = margins[i] + margins[j];
+                        let (a, b) = ((i, &bodies[i]), (j, &bodies[j]));
+                        body_manifold(a, b, shapes, prediction, state)
+                    }),
+            );
+        }
         self.pair_states.keep(pairs, states);
         stats.contacts = manifolds.len() - stats.ground_contacts;
         for m in manifolds.iter() {
@@ -537,9 +543,9 @@ impl SoftStep {
     ) {
         let w = &mut self.work;
         w.before_restitution
-            .resize(w.bodies.len(), SolverBody::STATIC);
+            .resize(w.bodies.len(), (DVec3::ZERO, DVec3::ZERO));
         for &i in &w.solved {
-            w.before_restitution[i] = w.bodies[i];
+            w.before_restitution[i] = (w.bodies[i].linear_velocity, w.bodies[i].angular_velocity);
         }
         restitution::apply(&w.contacts, &mut w.points, &mut w.bodies);
         let rule = restitution::EnergyRule {

@@ -86,7 +86,8 @@ pub struct EnergyRule {
     pub gravity: DVec3,
 }
 
-/// Settles each group's restitution (velocities between `before` and the current ones, scaled
+/// Settles each group's restitution (velocities between `before`, each body's linear and
+/// angular velocity before the restitution pass, and the current ones, scaled
 /// by a share `alpha`) on an energy consistent with the bounce: no group of bodies touching
 /// through bouncing points ends the step with more energy than `start` (each body's energy
 /// when the step began). Without friction, where nothing but the impacts takes energy, the
@@ -97,7 +98,7 @@ pub struct EnergyRule {
 pub fn settle_energy(
     contacts: &Contacts,
     poses: &[RigidBody],
-    before: &[SolverBody],
+    before: &[(DVec3, DVec3)],
     bodies: &mut [SolverBody],
     start: &[f64],
     rule: &EnergyRule,
@@ -106,11 +107,7 @@ pub fn settle_energy(
         // Energy as a function of the share alpha of restitution kept: a + b alpha + c alpha^2.
         let (mut a, mut b, mut c, mut initial) = (0.0, 0.0, 0.0, 0.0);
         for &i in &members {
-            let (body, v0, w0) = (
-                &poses[i],
-                before[i].linear_velocity,
-                before[i].angular_velocity,
-            );
+            let (body, (v0, w0)) = (&poses[i], before[i]);
             let (dv, dw) = (
                 bodies[i].linear_velocity - v0,
                 bodies[i].angular_velocity - w0,
@@ -130,7 +127,7 @@ pub fn settle_energy(
         let alpha = share_for(a, b, c, target.min(initial) + slack);
         if alpha != 1.0 {
             for &i in &members {
-                let (v0, w0) = (before[i].linear_velocity, before[i].angular_velocity);
+                let (v0, w0) = before[i];
                 bodies[i].linear_velocity = v0 + alpha * (bodies[i].linear_velocity - v0);
                 bodies[i].angular_velocity = w0 + alpha * (bodies[i].angular_velocity - w0);
             }

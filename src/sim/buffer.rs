@@ -1,0 +1,85 @@
+//! The step's large buffers are cleared and refilled every step. Grown by doubling, a buffer
+//! can hold twice what the busiest step needs, and a grown copy exists beside the old one while
+//! it moves; at 100,000 bodies in contact that is most of a scene's peak memory. These helpers
+//! keep a buffer near the size of its busiest step.
+
+use std::ops::Range;
+
+/// Clears `v` and makes room for `n` items. When it has too little, the old buffer is freed
+/// before a new one with an eighth of slack is taken (its contents are gone anyway).
+pub fn clear_for<T>(v: &mut Vec<T>, n: usize) {
+    v.clear();
+    if v.capacity() < n {
+        // Freed first: `*v = Vec::with_capacity(..)` would allocate before dropping the old.
+        *v = Vec::new();
+        v.reserve_exact(n + n / 8);
+    }
+}
+
+/// Room for `n` more items in `v`, taken exactly (not by doubling) when it has too little.
+pub fn reserve_exact<T>(v: &mut Vec<T>, n: usize) {
+    if v.capacity() - v.len() < n {
+        v.reserve_exact(n);
+    }
+}
+
+/// `0..n` in consecutive ranges of `block`. rayon collects an unindexed parallel iterator (a
+/// `filter_map`) into per-thread vectors before it copies them into the destination: extended
+/// a block at a time, that second copy is one block, not everything added.
+pub fn blocks(n: usize, block: usize) -> impl Iterator<Item = Range<usize>> {
+    let block = block.max(1);
+    (0..n)
+        .step_by(block)
+        .map(move |start| start..(start + block).min(n))
+}
+
+/// `items` cut into consecutive runs of the given lengths (which must not add up to more than
+/// it holds), so that runs can be filled in parallel.
+pub fn runs<T>(mut items: &mut [T], lengths: impl Iterator<Item = usize>) -> Vec<&mut [T]> {
+    lengths
+        .map(|n| {
+            let (run, rest) = std::mem::take(&mut items).split_at_mut(n);
+            items = rest;
+            run
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rayon::prelude::*;
+
+    #[test]
+    fn blocks_keep_the_order_and_skip_nothing() {
+        let mut out = vec![-1];
+        for r in blocks(1000, 64) {
+            out.par_extend(r.into_par_iter().filter(|i| i % 3 != 0).map(|i| i as i64));
+        }
+        let expected: Vec<i64> = std::iter::once(-1)
+            .chain((0..1000).filter(|i| i % 3 != 0))
+            .collect();
+        assert_eq!(out, expected);
+        assert_eq!(blocks(0, 64).count(), 0);
+        assert_eq!(blocks(128, 64).count(), 2);
+    }
+
+    #[test]
+    fn runs_cover_the_slice_in_order() {
+        let mut items: Vec<usize> = (0..10).collect();
+        let runs = runs(&mut items, [3, 0, 4, 3].into_iter());
+        let lengths: Vec<usize> = runs.iter().map(|r| r.len()).collect();
+        assert_eq!(lengths, [3, 0, 4, 3]);
+        assert_eq!(runs[2], [3, 4, 5, 6]);
+    }
+
+    #[test]
+    fn a_short_buffer_is_replaced_not_grown() {
+        let mut v: Vec<u64> = Vec::with_capacity(10);
+        v.extend(0..10);
+        clear_for(&mut v, 80);
+        assert!(v.is_empty() && (80..=90).contains(&v.capacity()));
+        clear_for(&mut v, 40);
+        assert!(v.capacity() >= 80, "a big enough buffer is kept");
+    }
+}
