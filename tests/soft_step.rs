@@ -325,6 +325,42 @@ fn neighbours_at_rest_do_not_keep_each_other_awake() {
     assert_eq!(wakes, [0, 0], "woken while the other rested");
 }
 
+/// A box dropped on the end of a resting row wakes what it moves, not the whole row: a woken
+/// body that has not moved disturbs no sleeper (before, each ring of woken neighbours woke the
+/// next within the same step, so one landing woke every body whose box reached another's).
+/// The row's boxes are turned 45 degrees so that neighbours' boxes overlap while the bodies are
+/// 0.13 apart: separate islands, no contact between them.
+#[test]
+fn a_landing_wakes_its_neighbours_not_the_whole_row() {
+    const ROW: usize = 12;
+    let mut world = boxes(ROW + 1, settling(0.02));
+    let turned = DQuat::from_rotation_y(std::f64::consts::FRAC_PI_4);
+    for (k, b) in world.bodies.iter_mut().enumerate().take(ROW) {
+        b.position = DVec3::new(2.3 * k as f64, 0.5, 0.0);
+        b.orientation = turned;
+    }
+    world.bodies[ROW].position = DVec3::new(0.0, 20.0, 0.0);
+    let row_asleep = |w: &World| w.bodies[..ROW].iter().all(|b| b.asleep);
+    let (mut slept, mut woke_at) = (false, None);
+    let mut far_end_woke = false;
+    for step in 0..1000 {
+        world.step();
+        slept |= row_asleep(&world);
+        if slept && woke_at.is_none() && !world.bodies[0].asleep {
+            woke_at = Some(step);
+            let awake = world.bodies[..ROW].iter().filter(|b| !b.asleep).count();
+            assert!(awake < ROW / 2, "{awake} of the row woken by one landing");
+        }
+        far_end_woke |= slept && !world.bodies[ROW - 1].asleep;
+    }
+    assert!(
+        woke_at.is_some(),
+        "the row never slept, or the landing never woke it"
+    );
+    assert!(!far_end_woke, "the far end of the row woke");
+    assert!(world.bodies.iter().all(|b| b.asleep), "not asleep again");
+}
+
 /// A pendulum is slow only for an instant at each apex: it never falls asleep, at any time step.
 #[test]
 fn a_pendulum_never_sleeps() {

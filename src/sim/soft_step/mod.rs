@@ -291,9 +291,8 @@ impl SoftStep {
         stats.asleep = bodies.iter().filter(|b| b.asleep).count();
     }
 
-    /// Candidate pairs: bodies whose boxes, grown by how far they can travel this step,
-    /// overlap (pairs of sleeping bodies left out). Sleeping islands an awake body comes near
-    /// are woken first.
+    /// Candidate pairs (see [`candidate_pairs`]), after waking the sleeping islands a moving
+    /// body comes near.
     fn broad_phase(
         &mut self,
         ctx: &StepContext,
@@ -316,25 +315,18 @@ impl SoftStep {
                 .map(|b| motion_bound(b, self.radii[b.shape], gravity, dt) + SPECULATIVE_DISTANCE),
         );
         let radii = &self.radii;
-        loop {
-            let view = &*bodies;
-            let keep = |i: usize, j: usize| {
-                let (a, b) = (&view[i], &view[j]);
-                may_collide(a, b)
-                    && !(a.asleep && b.asleep)
-                    && spheres_reach(
-                        (a, radii[a.shape] + margins[i]),
-                        (b, radii[b.shape] + margins[j]),
-                    )
-            };
-            let pairs =
-                broad.speculative_pairs(view, shapes, margins, keep, &mut stats.pairs_tested);
-            let seeds = sleep::disturbed(view, scene.constraints, &pairs);
-            let touching = self.contacts.pairs();
-            if !sleep::wake(bodies, scene.constraints, touching, seeds.into_iter()) {
-                return pairs;
-            }
+        let pairs = candidate_pairs(broad, (bodies, shapes), (radii, margins), stats);
+        let seeds = sleep::disturbed(bodies, scene.constraints, &pairs);
+        let touching = self.contacts.pairs();
+        if !sleep::wake(bodies, scene.constraints, touching, seeds.into_iter()) {
+            return pairs;
         }
+        // The woken islands' pairs with their neighbours. They have not moved, so they disturb
+        // no other sleeper in this step (their neighbours stay static to them for it, and wake
+        // in the next step if they moved): waking them in a loop until nothing more woke ran
+        // the broad phase once per ring of a resting carpet, five times a step at
+        // scatter-100000, and kept all of it awake.
+        candidate_pairs(broad, (bodies, shapes), (radii, margins), stats)
     }
 
     /// Manifolds of the candidate pairs and of the awake bodies near the ground, ground first,
@@ -604,6 +596,27 @@ impl SoftStep {
 /// constraints (their rows are prepared even between sleeping bodies).
 fn at_rest(scene: &Scene) -> bool {
     scene.grab.is_none() && scene.constraints.is_empty() && !any_awake(scene.bodies)
+}
+
+/// Candidate pairs: bodies whose boxes, grown by their `margins` (how far they can travel this
+/// step), overlap and whose bounding spheres so grown reach each other; pairs of sleeping
+/// bodies left out.
+fn candidate_pairs(
+    broad: &mut BroadPhase,
+    (bodies, shapes): (&[RigidBody], &[Shape]),
+    (radii, margins): (&[f64], &[f64]),
+    stats: &mut StepStats,
+) -> Vec<(u32, u32)> {
+    let keep = |i: usize, j: usize| {
+        let (a, b) = (&bodies[i], &bodies[j]);
+        may_collide(a, b)
+            && !(a.asleep && b.asleep)
+            && spheres_reach(
+                (a, radii[a.shape] + margins[i]),
+                (b, radii[b.shape] + margins[j]),
+            )
+    };
+    broad.speculative_pairs(bodies, shapes, margins, keep, &mut stats.pairs_tested)
 }
 
 /// Whether the bounding spheres of two bodies, each grown by its reach, overlap. The boxes of
