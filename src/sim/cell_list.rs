@@ -215,13 +215,8 @@ mod tests {
     /// some asleep, against the test of every pair.
     #[test]
     fn pairs_match_every_pair_tested() {
-        let mut seed = 12345u64;
-        let mut next = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::sim::rng::Rng::new(12345);
+        let mut next = move || rng.unit();
         let n = 1500;
         let boxes: Vec<Aabb> = (0..n)
             .map(|k: usize| {

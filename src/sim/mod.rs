@@ -18,6 +18,7 @@ pub mod integrate;
 pub mod narrow_phase;
 pub mod pair_queue;
 pub mod quarantine;
+pub mod rng;
 pub mod settings;
 pub mod shape;
 pub mod soft_step;

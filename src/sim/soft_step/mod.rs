@@ -737,13 +737,8 @@ mod tests {
         .map(|mesh| Shape::from_tet_mesh(mesh).unwrap())
         .collect();
         let radii: Vec<f64> = shapes.iter().map(|s| s.bounding_radius()).collect();
-        let mut seed = 7u64;
-        let mut next = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::sim::rng::Rng::new(7);
+        let mut next = move || rng.unit();
         let (mut found, mut filtered) = (0, 0);
         for k in 0..4000 {
             let (s1, s2) = (k % 3, (k / 3) % 3);
