@@ -194,10 +194,7 @@ impl ContactCache {
         // One buffer: the sleepers' entries kept, this step's added after them.
         self.entries.retain(|(pair, _)| sleeping(*pair));
         let sleepers = self.entries.len();
-        let needed = sleepers + manifolds.len();
-        if self.entries.capacity() < needed {
-            self.entries.reserve_exact(needed + needed / 8 - sleepers);
-        }
+        buffer::reserve_exact(&mut self.entries, manifolds.len());
         for (m, c) in manifolds.iter().zip(constraints) {
             let f = &c.friction;
             let mut cached = CachedManifold {

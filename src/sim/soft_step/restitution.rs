@@ -86,9 +86,9 @@ pub struct EnergyRule {
     pub gravity: DVec3,
 }
 
-/// Settles each group's restitution (velocities between `before`, each body's linear and
-/// angular velocity before the restitution pass, and the current ones, scaled
-/// by a share `alpha`) on an energy consistent with the bounce: no group of bodies touching
+/// Settles each group's restitution (velocities between `before`, each body's (linear,
+/// angular) velocity before the restitution pass, and the current ones, scaled by a share
+/// `alpha`) on an energy consistent with the bounce: no group of bodies touching
 /// through bouncing points ends the step with more energy than `start` (each body's energy
 /// when the step began). Without friction, where nothing but the impacts takes energy, the
 /// group keeps exactly `e^2` of what the impacts took (Poisson's hypothesis is
