@@ -26,7 +26,8 @@ pub struct BroadPhase {
     is_awake: Vec<bool>,
     /// The pose each body's box was last computed at.
     placed: Vec<Option<(DVec3, DQuat)>>,
-    /// The soft step's grid, rebuilt every step.
+    /// The soft step's cells, rebuilt every step (the coursework's loop keeps the hash grid,
+    /// which it updates body by body as contacts move them).
     cells: CellList,
     /// The grid holds `proxies` as the coursework's loop left them (the soft step's boxes
     /// replace them without touching the grid).
@@ -142,15 +143,10 @@ impl BroadPhase {
         self.is_awake.extend(bodies.iter().map(|b| b.is_awake()));
         let active: Vec<bool> = bodies.iter().map(|b| !b.quarantined).collect();
         let cell = self.grid.cell_size();
-        let (pairs, count) = if self.cells.build(&self.proxies, &active, cell, 8 * n + 4096) {
-            self.cells
-                .pairs_with_awake(&self.is_awake, &self.proxies, keep)
-        } else {
-            // Boxes spread too far for a dense grid: the hash grid, built afresh.
-            self.grid.rebuild(&self.proxies, &active);
-            self.grid
-                .pairs_with_awake(&self.is_awake, &self.proxies, keep)
-        };
+        self.cells.build(&self.proxies, &active, cell, 8 * n + 4096);
+        let (pairs, count) = self
+            .cells
+            .pairs_with_awake(&self.is_awake, &self.proxies, keep);
         *tested += count;
         pairs
     }
