@@ -155,6 +155,9 @@ pub struct Measurement {
     pub steps_measured: usize,
     /// Bodies asleep after the last step.
     pub asleep_at_end: usize,
+    /// Wall seconds of each measured step, for ratios over the steps two runs share.
+    #[serde(skip)]
+    pub step_seconds: Vec<f64>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -165,7 +168,8 @@ pub struct ScaleReport {
     pub accurate_settings: String,
     /// "scene-N" -> variant name -> measurement.
     pub results: BTreeMap<String, BTreeMap<String, Measurement>>,
-    /// Ratios of medians per scene and size (`a_over_b` = a's ms / b's ms).
+    /// Ratios of medians per scene and size (`a_over_b` = a's ms / b's ms), over the steps both
+    /// runs measured.
     pub speedups: BTreeMap<String, BTreeMap<String, f64>>,
     /// "scene-N variant: why" for each run left out.
     pub left_out: Vec<String>,
@@ -298,6 +302,7 @@ fn measure_tumble(
         peak_mib: (alloc::peak().saturating_sub(baseline)) as f64 / (1024.0 * 1024.0),
         steps_measured: times.len(),
         asleep_at_end: world.bodies.iter().filter(|b| b.asleep).count(),
+        step_seconds: times,
     })
 }
 
@@ -331,6 +336,7 @@ fn measure_rapier(
         peak_mib,
         steps_measured: times.len(),
         asleep_at_end,
+        step_seconds: times,
     })
 }
 
@@ -397,7 +403,10 @@ pub fn run(config: &ScaleConfig, progress: &dyn Progress) -> anyhow::Result<Scal
     })
 }
 
-/// The ratios the targets read, per scene and size: `a_over_b` = a's median / b's.
+/// The ratios the targets read, per scene and size: `a_over_b` = a's median / b's, both
+/// over the first steps both runs measured. A run cut short by the time cap measured an earlier,
+/// often cheaper window than one that ran on (a pile gains contacts as it builds), so medians
+/// of the whole runs would compare different work.
 const RATIOS: [(&str, &str); 7] = [
     ("coursework", "tumble_1_thread"),
     ("coursework", "tumble_all_cores"),
@@ -415,9 +424,13 @@ fn speedups(
     for (key, by_variant) in results {
         let entry = speedups.entry(key.clone()).or_default();
         for (a, b) in RATIOS {
-            if let (Some(a_ms), Some(b_ms)) = (by_variant.get(a), by_variant.get(b)) {
-                let ratio = a_ms.median_ms_per_step / b_ms.median_ms_per_step.max(1e-9);
-                entry.insert(format!("{a}_over_{b}"), ratio);
+            if let (Some(run_a), Some(run_b)) = (by_variant.get(a), by_variant.get(b)) {
+                let shared = run_a.step_seconds.len().min(run_b.step_seconds.len());
+                let (a_ms, b_ms) = (
+                    median_ms(&run_a.step_seconds[..shared]),
+                    median_ms(&run_b.step_seconds[..shared]),
+                );
+                entry.insert(format!("{a}_over_{b}"), a_ms / b_ms.max(1e-9));
             }
         }
     }
@@ -507,5 +520,38 @@ fn rapier_note() -> &'static str {
         "Rapier 0.36 (rapier3d-f64, single-threaded build): same hulls, densities, dt, gravity; chain links as rope joints at the upper bound. `rapier`: restitution 1, friction 0, sleeping off (the coursework's physics); `rapier_accurate`: the accurate variants' restitution 0.2 and friction 0.5, sleeping on."
     } else {
         "Rapier comparison not built in: run `cargo run --release --features compare-rapier -- bench scale` to add it."
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run_of(step_seconds: Vec<f64>) -> Measurement {
+        Measurement {
+            median_ms_per_step: median_ms(&step_seconds),
+            late_median_ms_per_step: late_median_ms(&step_seconds),
+            mean_stage_ms: BTreeMap::new(),
+            constraint_visits_per_step: 0.0,
+            contacts_per_step: 0.0,
+            peak_mib: 0.0,
+            steps_measured: step_seconds.len(),
+            asleep_at_end: 0,
+            step_seconds,
+        }
+    }
+
+    /// One thread cut by the time cap after 3 cheap steps, all cores on into 4 dear ones: the
+    /// ratio compares the 3 steps both measured (2x), not the two medians (0.5 / 2 = 0.25x).
+    #[test]
+    fn ratios_compare_the_steps_both_runs_measured() {
+        let mut by_variant = BTreeMap::new();
+        by_variant.insert("accurate_1_thread".to_string(), run_of(vec![0.5; 3]));
+        let all_cores = vec![0.25, 0.25, 0.25, 2.0, 2.0, 2.0, 2.0];
+        by_variant.insert("accurate_all_cores".to_string(), run_of(all_cores));
+        let results = BTreeMap::from([("pile-10000".to_string(), by_variant)]);
+        let ratios = speedups(&results);
+        let ratio = ratios["pile-10000"]["accurate_1_thread_over_accurate_all_cores"];
+        assert!((ratio - 2.0).abs() < 1e-12, "{ratio}");
     }
 }

@@ -187,7 +187,10 @@ fn print_scale(report: &ScaleReport) {
             println!("  {why}");
         }
     }
-    println!("\naccurate variants: {}", report.accurate_settings);
+    println!(
+        "\nratios a_over_b: a's median ms / b's, over the steps both runs measured (a run cut by the time cap measured fewer)"
+    );
+    println!("accurate variants: {}", report.accurate_settings);
     println!("{}", report.rapier);
     println!(
         "wrote {} and {}",
