@@ -103,6 +103,9 @@ pub struct Shape {
     /// body's world box is bounded without touching its vertices.
     pub local_box_center: DVec3,
     pub local_box_half_extents: DVec3,
+    /// Whether the hull is exactly that box (its eight corners): then two such bodies meet
+    /// through the box-box separating-axis test instead of GJK on their hulls.
+    pub is_box: bool,
 }
 
 impl std::fmt::Debug for Shape {
@@ -147,17 +150,35 @@ impl Shape {
             (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
             |(lo, hi), v| (lo.min(*v), hi.max(*v)),
         );
+        let (center, half) = ((min + max) / 2.0, (max - min) / 2.0);
         Ok(Shape {
+            is_box: hull_is_box(hull.points(), center, half),
             rest_vertices,
             triangles,
             tetrahedra: mesh.tetrahedra.clone(),
             volume: props.volume,
             unit_inertia: props.unit_inertia,
             hull,
-            local_box_center: (min + max) / 2.0,
-            local_box_half_extents: (max - min) / 2.0,
+            local_box_center: center,
+            local_box_half_extents: half,
         })
     }
+}
+
+/// Whether `points` are the eight corners of the box `center +- half` (to a relative 1e-12).
+fn hull_is_box(points: &[DVec3], center: DVec3, half: DVec3) -> bool {
+    let tolerance = 1e-12 * (center.abs() + half).max_element();
+    let mut corners_met = 0u8;
+    for p in points {
+        let d = *p - center;
+        let signs = d.cmpgt(DVec3::ZERO).bitmask() as usize;
+        let corner = DVec3::select(d.cmpgt(DVec3::ZERO), half, -half);
+        if (d - corner).abs().max_element() > tolerance {
+            return false;
+        }
+        corners_met |= 1 << signs;
+    }
+    points.len() == 8 && corners_met == u8::MAX && half.min_element() > 0.0
 }
 
 impl Shape {

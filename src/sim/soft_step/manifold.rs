@@ -4,7 +4,9 @@
 //!
 //! Body-body manifolds come from parry's polyhedral feature clipping with a prediction distance
 //! (speculative contacts: points up to that far apart are kept, and the solver lets the bodies
-//! close the gap but no more). Ground manifolds are the hull vertices within the prediction
+//! close the gap but no more); the features come from GJK on the hulls, or for two boxes from
+//! the box-box separating-axis test (15 axes, as in Gottschalk's OBB test and Box2D's polygon
+//! collider). Ground manifolds are the hull vertices within the prediction
 //! distance of the plane y = 0.
 
 use crate::sim::body::RigidBody;
@@ -12,7 +14,8 @@ use crate::sim::shape::Shape;
 use glam::{DQuat, DVec3};
 use parry3d_f64::math::Pose;
 use parry3d_f64::query::ContactManifold;
-use parry3d_f64::query::details::contact_manifold_pfm_pfm;
+use parry3d_f64::query::details::{contact_manifold_cuboid_cuboid, contact_manifold_pfm_pfm};
+use parry3d_f64::shape::Cuboid;
 
 /// Index standing for the ground plane in a manifold's `body1`.
 pub const GROUND: usize = usize::MAX;
@@ -74,7 +77,9 @@ fn pose(body: &RigidBody) -> Pose {
 pub type PairState = ContactManifold<(), ()>;
 
 /// The manifold between bodies `i < j` with points up to `prediction` apart, or None; `state`
-/// is the pair's from the last step, updated.
+/// is the pair's from the last step, updated. Two boxes meet through parry's box-box
+/// separating-axis test and face clipping (about 4x cheaper than GJK and clipping on their
+/// hulls, measured on box pairs in contact); other pairs through GJK on the hulls.
 pub fn body_manifold(
     (i, body1): (usize, &RigidBody),
     (j, body2): (usize, &RigidBody),
@@ -84,6 +89,19 @@ pub fn body_manifold(
 ) -> Option<Manifold> {
     let (shape1, shape2) = (&shapes[body1.shape], &shapes[body2.shape]);
     let pos12 = pose(body1).inv_mul(&pose(body2));
+    if shape1.is_box && shape2.is_box {
+        // parry's boxes are centred on their frames; ours on the centre of mass.
+        let (c1, c2) = (shape1.local_box_center, shape2.local_box_center);
+        let boxes12 = Pose::from_translation(-c1) * pos12 * Pose::from_translation(c2);
+        contact_manifold_cuboid_cuboid(
+            &boxes12,
+            &Cuboid::new(shape1.local_box_half_extents),
+            &Cuboid::new(shape2.local_box_half_extents),
+            prediction,
+            state,
+        );
+        return from_parry(state, (i, body1, c1), (j, body2, c2), prediction);
+    }
     contact_manifold_pfm_pfm(
         &pos12,
         &shape1.hull,
@@ -95,7 +113,12 @@ pub fn body_manifold(
         prediction,
         state,
     );
-    from_parry(state, (i, body1), (j, body2), prediction)
+    from_parry(
+        state,
+        (i, body1, DVec3::ZERO),
+        (j, body2, DVec3::ZERO),
+        prediction,
+    )
 }
 
 /// Each candidate pair's [`PairState`], kept in the pairs' (sorted) order.
@@ -142,11 +165,12 @@ impl PairStates {
     }
 }
 
-/// tumble's manifold from parry's (points beyond `prediction` dropped, at most four kept).
+/// tumble's manifold from parry's (points beyond `prediction` dropped, at most four kept); each
+/// shape's frame in parry lies at `offset` in its body's frame.
 fn from_parry(
     found: &ContactManifold<(), ()>,
-    (i, body1): (usize, &RigidBody),
-    (j, body2): (usize, &RigidBody),
+    (i, body1, offset1): (usize, &RigidBody, DVec3),
+    (j, body2, offset2): (usize, &RigidBody, DVec3),
     prediction: f64,
 ) -> Option<Manifold> {
     let normal = (body1.orientation * found.local_n1).normalize_or_zero();
@@ -158,8 +182,8 @@ fn from_parry(
         .iter()
         .filter(|p| p.dist <= prediction && p.dist.is_finite())
         .map(|p| {
-            let on1 = body1.world_point(p.local_p1);
-            let on2 = body2.world_point(p.local_p2);
+            let on1 = body1.world_point(p.local_p1 + offset1);
+            let on2 = body2.world_point(p.local_p2 + offset2);
             ManifoldPoint {
                 point: 0.5 * (on1 + on2),
                 separation: p.dist,
@@ -333,5 +357,96 @@ mod tests {
                 assert!(d > 1.0, "{d}");
             }
         }
+    }
+
+    /// A small box resting flat and slightly sunk (0.01) on a large one, off its centre: four
+    /// points at the corners of the overlap rectangle, each 0.01 deep, normal straight up.
+    #[test]
+    fn box_on_box_is_the_overlap_rectangle() {
+        use crate::scene::assets;
+        let shapes = [
+            Shape::from_tet_mesh(&assets::cuboid(DVec3::new(2.0, 0.5, 2.0))).unwrap(),
+            Shape::from_tet_mesh(&assets::cuboid(DVec3::new(1.0, 0.5, 1.0))).unwrap(),
+        ];
+        assert!(shapes[0].is_box && shapes[1].is_box);
+        let at = |shape: usize, p: DVec3| {
+            RigidBody::on_shape(&shapes[shape], shape, 1.0, false, p, DQuat::IDENTITY)
+        };
+        let (low, high) = (at(0, DVec3::ZERO), at(1, DVec3::new(1.5, 0.99, 0.5)));
+        let mut state = PairState::default();
+        let m = body_manifold((0, &low), (1, &high), &shapes, 0.1, &mut state).unwrap();
+        assert!((m.normal - DVec3::Y).length() < 1e-12, "{:?}", m.normal);
+        let mut corners: Vec<(f64, f64)> = m
+            .points()
+            .iter()
+            .map(|p| {
+                assert!((p.separation + 0.01).abs() < 1e-9, "{p:?}");
+                assert!((p.point.y - 0.495).abs() < 1e-9, "{p:?}");
+                (p.point.x, p.point.z)
+            })
+            .collect();
+        corners.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        let expected = [(0.5, -0.5), (0.5, 1.5), (2.0, -0.5), (2.0, 1.5)];
+        assert_eq!(corners.len(), 4);
+        for (c, e) in corners.iter().zip(expected) {
+            assert!(
+                (c.0 - e.0).abs() < 1e-9 && (c.1 - e.1).abs() < 1e-9,
+                "{corners:?}"
+            );
+        }
+    }
+
+    /// Box pairs in contact at random poses, one box with its centre of mass off its centre (a
+    /// tetrahedron counted twice): the separating-axis path finds the normal and the depth that
+    /// GJK and EPA find on the same hulls.
+    #[test]
+    fn box_pairs_agree_with_the_hull_path() {
+        use crate::scene::assets;
+        let mut lopsided = assets::cuboid(DVec3::new(1.0, 0.4, 0.7));
+        lopsided.tetrahedra.push(lopsided.tetrahedra[0]);
+        let boxes = [
+            Shape::from_tet_mesh(&assets::cuboid(DVec3::new(1.5, 0.5, 1.0))).unwrap(),
+            Shape::from_tet_mesh(&lopsided).unwrap(),
+        ];
+        assert!(boxes.iter().all(|s| s.is_box));
+        assert!(boxes[1].local_box_center.length() > 0.01);
+        let hulls = boxes.clone().map(|s| Shape { is_box: false, ..s });
+        let mut rng = crate::sim::rng::Rng::new(99);
+        let mut compared = 0;
+        for _ in 0..400 {
+            let axis = DVec3::new(rng.unit(), rng.unit(), rng.unit()) - 0.5;
+            let turn = DQuat::from_axis_angle(axis.normalize(), 6.3 * rng.unit());
+            let offset = DVec3::new(rng.unit() - 0.5, 0.0, rng.unit() - 0.5) * 2.0;
+            let p = offset + DVec3::Y * (0.6 + 1.2 * rng.unit());
+            let low = RigidBody::on_shape(&boxes[0], 0, 1.0, false, DVec3::ZERO, DQuat::IDENTITY);
+            let high = RigidBody::on_shape(&boxes[1], 1, 1.0, false, p, turn);
+            let manifold = |shapes: &[Shape]| {
+                let mut state = PairState::default();
+                body_manifold((0, &low), (1, &high), shapes, 0.0, &mut state)
+            };
+            let (Some(sat), Some(gjk)) = (manifold(&boxes), manifold(&hulls)) else {
+                continue;
+            };
+            let deepest =
+                |m: &Manifold| m.points().iter().map(|p| p.separation).fold(0.0, f64::min);
+            assert!(sat.normal.dot(gjk.normal) > 1.0 - 1e-6, "{sat:?} {gjk:?}");
+            assert!(
+                (deepest(&sat) - deepest(&gjk)).abs() < 1e-6,
+                "{sat:?} {gjk:?}"
+            );
+            // Each point's ends (half the separation either way) lie on their boxes.
+            let on = |body: &RigidBody, shape: &Shape, world: DVec3| {
+                let local = body.orientation.inverse() * (world - body.position);
+                let from_centre = (local - shape.local_box_center).abs();
+                (from_centre - shape.local_box_half_extents).max_element() < 1e-6
+            };
+            for p in sat.points() {
+                let half = 0.5 * p.separation * sat.normal;
+                assert!(on(&low, &boxes[0], p.point - half), "{p:?}");
+                assert!(on(&high, &boxes[1], p.point + half), "{p:?}");
+            }
+            compared += 1;
+        }
+        assert!(compared > 50, "{compared}");
     }
 }
