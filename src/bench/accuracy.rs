@@ -170,6 +170,12 @@ pub fn run(config: &AccuracyConfig, progress: &dyn Progress) -> anyhow::Result<A
     progress.start(jobs.len() as u64, "bench accuracy");
     let mut results = AccuracyResults::new();
     let mut csv = String::from("scenario,combination,dt,wall_per_sim_second,metric,value\n");
+    // The first job of a process pays one-off costs (the thread pool starting, first page
+    // faults): run once unmeasured, free fall with the coursework at dt 0.04 took 0.058 ms per
+    // simulated second against 0.037 at dt 0.02.
+    if let Some(first) = jobs.first() {
+        scenarios::run_with(first.scenario, &first.settings, first.engine);
+    }
     for (k, job) in jobs.iter().enumerate() {
         progress.message(&format!("{} {} dt={}", job.name, job.combination, job.dt));
         let outcome = scenarios::run_with(job.scenario, &job.settings, job.engine);
