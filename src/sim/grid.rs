@@ -37,6 +37,16 @@ type CellMap = HashMap<u64, Vec<u32>, BuildHasherDefault<CellHasher>>;
 /// against every other body instead of filling thousands of cells (floors, walls).
 const MAX_CELLS_PER_AXIS: i64 = 8;
 
+/// The cell holding coordinate `v` (in cells): its floor, clamped to +-2^52 first so it fits
+/// an i64 and `hi - lo` cannot overflow (a body at 1e300). By hand: `f64::floor` is a libm
+/// call on baseline x86-64, and this runs for every body that moves.
+fn cell_of(v: f64) -> i64 {
+    const LIMIT: f64 = (1u64 << 52) as f64;
+    let v = v.clamp(-LIMIT, LIMIT);
+    let truncated = v as i64;
+    truncated - ((truncated as f64) > v) as i64
+}
+
 /// Uniform hash grid of body boxes.
 #[derive(Debug, Default, Clone)]
 pub struct Grid {
@@ -71,25 +81,20 @@ impl Grid {
         self.cell_size
     }
 
-    /// The cells a box spans (min and max corner), or None for an oversized box. The span is
-    /// judged in floating point and the corners clamped to +-2^52 cells before conversion, so a
-    /// body at 1e300 neither overflows `hi - lo` nor loops over billions of cells.
+    /// The cells a box spans (min and max corner), or None for an oversized box. The corners are
+    /// clamped to +-2^52 cells, so a body at 1e300 neither overflows `hi - lo` nor loops over
+    /// billions of cells.
     fn range(&self, aabb: &Aabb) -> Option<([i64; 3], [i64; 3])> {
-        const LIMIT: f64 = (1u64 << 52) as f64;
         let inv = 1.0 / self.cell_size;
-        let lo = (aabb.min * inv).floor();
-        let hi = (aabb.max * inv).floor();
+        let (lo, hi) = (aabb.min * inv, aabb.max * inv);
         if !lo.is_finite() || !hi.is_finite() {
             return None;
         }
-        if (hi - lo).max_element() >= MAX_CELLS_PER_AXIS as f64 {
+        let (lo, hi) = (lo.to_array().map(cell_of), hi.to_array().map(cell_of));
+        if (0..3).any(|k| hi[k] - lo[k] >= MAX_CELLS_PER_AXIS) {
             return None;
         }
-        let cell = |v: f64| v.clamp(-LIMIT, LIMIT) as i64;
-        Some((
-            [cell(lo.x), cell(lo.y), cell(lo.z)],
-            [cell(hi.x), cell(hi.y), cell(hi.z)],
-        ))
+        Some((lo, hi))
     }
 
     fn key(x: i64, y: i64, z: i64) -> u64 {
