@@ -150,7 +150,7 @@ impl CellList {
 
     /// Calls `f` with each cell of `range` and its slot.
     fn for_cells(&self, (lo, hi): CellRange, mut f: impl FnMut([u32; 3], usize)) {
-        // Exclusive u64 ranges: an inclusive range's end test is slower, and hi may be u32::MAX.
+        // In u64: hashed cells far out reach u32::MAX, where `hi + 1` would overflow.
         let axis = |k: usize| lo[k] as u64..hi[k] as u64 + 1;
         for x in axis(0) {
             for y in axis(1) {
