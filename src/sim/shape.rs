@@ -243,3 +243,26 @@ fn orient_outward(vertices: &[DVec3], triangles: &mut [[u32; 3]]) {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::assets;
+
+    /// A box is one; a box turned in its mesh (its body-space box is no longer its hull), a box
+    /// with one corner moved, an octahedron and a tetrahedron are not.
+    #[test]
+    fn only_hulls_that_are_their_box_are_boxes() {
+        let shape = |mesh: &TetMesh| Shape::from_tet_mesh(mesh).unwrap();
+        assert!(shape(&assets::cuboid(DVec3::new(3.0, 1.5, 2.0))).is_box);
+        let mut turned = assets::cuboid(DVec3::new(3.0, 1.5, 2.0));
+        let turn = glam::DQuat::from_rotation_y(0.3);
+        turned.vertices.iter_mut().for_each(|v| *v = turn * *v);
+        assert!(!shape(&turned).is_box);
+        let mut dented = assets::cuboid(DVec3::ONE);
+        dented.vertices[7] *= 0.9;
+        assert!(!shape(&dented).is_box);
+        assert!(!shape(&assets::octahedron(DVec3::ONE)).is_box);
+        assert!(!shape(&assets::tetrahedron(1.0)).is_box);
+    }
+}
