@@ -13,6 +13,7 @@ use crate::sim::body::RigidBody;
 use crate::sim::constraint::DistanceConstraint;
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
+use std::ops::Range;
 
 /// Largest group solved directly (rows of one connected group of bodies).
 pub const MAX_BLOCK: usize = 48;
@@ -56,13 +57,32 @@ struct Geometry {
     length: f64,
 }
 
+/// A row's Jacobian along its axis, per end (body 1, body 2): the angular part `r x axis`, the
+/// angular response `I^-1 (r x axis)` to a unit impulse, and the inverse mass. Computed once
+/// per solve, so each entry of `K` is a few dot products.
+#[derive(Debug, Clone, Copy, Default)]
+struct Jacobian {
+    angular: [DVec3; 2],
+    response: [DVec3; 2],
+    inverse_mass: [f64; 2],
+}
+
+/// One connected group: its records, and the pairs of them that share a body (the only
+/// off-diagonal entries of its `K`; a chain's are its neighbours).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Group {
+    pub records: Range<usize>,
+    couplings: Range<usize>,
+}
+
 /// The records of the world's constraints, grouped by connected bodies, and the buffers one
 /// group's solve works in (kept between steps).
 #[derive(Debug, Clone, Default)]
 pub struct JointBlocks {
     pub records: Vec<DistanceRecord>,
-    /// `records[start..end]` of each group.
-    pub groups: Vec<(usize, usize)>,
+    pub groups: Vec<Group>,
+    /// Pairs (i < j) of records of one group that share a body, by index within the group.
+    couplings: Vec<(usize, usize)>,
     scratch: Scratch,
 }
 
@@ -70,6 +90,7 @@ pub struct JointBlocks {
 #[derive(Debug, Clone, Default)]
 struct Scratch {
     geometries: Vec<Geometry>,
+    jacobians: Vec<Jacobian>,
     u: Vec<f64>,
     lo: Vec<f64>,
     hi: Vec<f64>,
@@ -113,17 +134,26 @@ impl JointBlocks {
             })
             .collect();
         keyed.sort_by_key(|(group, _)| *group);
-        let mut groups = Vec::new();
+        let records: Vec<DistanceRecord> = keyed.iter().map(|(_, r)| *r).collect();
+        let (mut groups, mut couplings) = (Vec::new(), Vec::new());
         let mut start = 0;
         for k in 1..=keyed.len() {
             if k == keyed.len() || keyed[k].0 != keyed[start].0 {
-                groups.push((start, k));
+                let first = couplings.len();
+                if k - start <= MAX_BLOCK {
+                    couplings.extend(sharing_pairs(&records[start..k]));
+                }
+                groups.push(Group {
+                    records: start..k,
+                    couplings: first..couplings.len(),
+                });
                 start = k;
             }
         }
         Self {
-            records: keyed.into_iter().map(|(_, r)| r).collect(),
+            records,
             groups,
+            couplings,
             scratch: Scratch::default(),
         }
     }
@@ -138,6 +168,20 @@ impl JointBlocks {
                 .iter()
                 .all(|r| bodies[r.body1].is_dynamic() || bodies[r.body2].is_dynamic())
     }
+}
+
+/// The pairs (i < j) of `records` that share a body.
+fn sharing_pairs(records: &[DistanceRecord]) -> impl Iterator<Item = (usize, usize)> + '_ {
+    let shares = |a: &DistanceRecord, b: &DistanceRecord| {
+        [a.body1, a.body2]
+            .iter()
+            .any(|x| *x == b.body1 || *x == b.body2)
+    };
+    (0..records.len()).flat_map(move |i| {
+        (i + 1..records.len())
+            .filter(move |&j| shares(&records[i], &records[j]))
+            .map(move |j| (i, j))
+    })
 }
 
 /// Consecutive lower and upper inequalities on the same points become one record.
@@ -192,63 +236,91 @@ fn geometry(r: &DistanceRecord, a: &RigidBody, b: &RigidBody) -> Option<Geometry
     })
 }
 
-/// `K_ij`: how a unit impulse of row j changes row i's rate (shared bodies only); `inverse(b)`
-/// is body b's inverse mass and world inverse inertia.
-fn coupling(
-    ri: &DistanceRecord,
-    gi: &Geometry,
-    rj: &DistanceRecord,
-    gj: &Geometry,
+/// The row's Jacobian at geometry `g`; `inverse(b)` is body b's inverse mass and world inverse
+/// inertia.
+fn jacobian(
+    r: &DistanceRecord,
+    g: &Geometry,
     inverse: &impl Fn(usize) -> (f64, DMat3),
+) -> Jacobian {
+    let mut out = Jacobian::default();
+    for (end, (body, arm)) in [(r.body1, g.r1), (r.body2, g.r2)].into_iter().enumerate() {
+        let (inverse_mass, inverse_inertia) = inverse(body);
+        out.angular[end] = arm.cross(g.axis);
+        out.response[end] = inverse_inertia * out.angular[end];
+        out.inverse_mass[end] = inverse_mass;
+    }
+    out
+}
+
+/// `K_ij`: how a unit impulse of row j changes row i's rate, through the bodies they share
+/// (body 1 is pushed against the axis, body 2 along it).
+fn coupling(
+    (ri, gi, ji): (&DistanceRecord, &Geometry, &Jacobian),
+    (rj, gj, jj): (&DistanceRecord, &Geometry, &Jacobian),
 ) -> f64 {
     let mut k = 0.0;
-    for (bi, si, ai) in [(ri.body1, -1.0, gi.r1), (ri.body2, 1.0, gi.r2)] {
-        for (bj, sj, aj) in [(rj.body1, -1.0, gj.r1), (rj.body2, 1.0, gj.r2)] {
+    for (ei, bi) in [ri.body1, ri.body2].into_iter().enumerate() {
+        for (ej, bj) in [rj.body1, rj.body2].into_iter().enumerate() {
             if bi != bj {
                 continue;
             }
-            let (inverse_mass, inverse_inertia) = inverse(bi);
-            let (ui, uj) = (ai.cross(gi.axis), aj.cross(gj.axis));
-            k += si * sj * (inverse_mass * gi.axis.dot(gj.axis) + ui.dot(inverse_inertia * uj));
+            let sign = if ei == ej { 1.0 } else { -1.0 };
+            k += sign
+                * (ji.inverse_mass[ei] * gi.axis.dot(gj.axis)
+                    + ji.angular[ei].dot(jj.response[ej]));
         }
     }
     k
 }
 
 /// Solves `K_AA x = rhs_A` for the active rows (Cholesky, in place); false if not positive
-/// definite.
+/// definite. Only each row's envelope is visited (from its first non-zero entry to the
+/// diagonal), where the factor's non-zeros stay (George and Liu, "Computer Solution of Large
+/// Sparse Positive Definite Systems", 1981): a chain in link order is tridiagonal, so the
+/// factorisation and both substitutions take time linear in its length.
 fn cholesky_solve(k: &mut [f64], n: usize, x: &mut [f64]) -> bool {
+    debug_assert!(n <= MAX_BLOCK);
+    let mut first = [0usize; MAX_BLOCK];
+    let mut inverse_diagonal = [0.0f64; MAX_BLOCK];
+    for i in 0..n {
+        first[i] = (0..i).find(|&p| k[i * n + p] != 0.0).unwrap_or(i);
+    }
     for j in 0..n {
-        let mut d = k[j * n + j];
-        for p in 0..j {
-            d -= k[j * n + p] * k[j * n + p];
+        let row_j = j * n;
+        let mut d = k[row_j + j];
+        for p in first[j]..j {
+            d -= k[row_j + p] * k[row_j + p];
         }
         if d <= 1e-300 || !d.is_finite() {
             return false;
         }
         let d = d.sqrt();
-        k[j * n + j] = d;
-        for i in j + 1..n {
-            let mut s = k[i * n + j];
-            for p in 0..j {
-                s -= k[i * n + p] * k[j * n + p];
+        k[row_j + j] = d;
+        inverse_diagonal[j] = 1.0 / d;
+        for i in (j + 1..n).filter(|&i| first[i] <= j) {
+            let row_i = i * n;
+            let mut s = k[row_i + j];
+            for p in first[i].max(first[j])..j {
+                s -= k[row_i + p] * k[row_j + p];
             }
-            k[i * n + j] = s / d;
+            k[row_i + j] = s * inverse_diagonal[j];
         }
     }
+    // L y = b by rows, then L^T x = y by columns of L^T (rows of L): both within the envelope.
     for i in 0..n {
         let mut s = x[i];
-        for p in 0..i {
+        for p in first[i]..i {
             s -= k[i * n + p] * x[p];
         }
-        x[i] = s / k[i * n + i];
+        x[i] = s * inverse_diagonal[i];
     }
     for i in (0..n).rev() {
-        let mut s = x[i];
-        for p in i + 1..n {
-            s -= k[p * n + i] * x[p];
+        x[i] *= inverse_diagonal[i];
+        let xi = x[i];
+        for p in first[i]..i {
+            x[p] -= k[i * n + p] * xi;
         }
-        x[i] = s / k[i * n + i];
     }
     true
 }
@@ -365,9 +437,9 @@ impl JointBlocks {
     /// The world's constraints (indices) in groups too large to solve directly.
     pub fn large_group_constraints(&self) -> Vec<usize> {
         let mut out = Vec::new();
-        for &(start, end) in &self.groups {
-            if end - start > MAX_BLOCK {
-                for r in &self.records[start..end] {
+        for g in &self.groups {
+            if g.records.len() > MAX_BLOCK {
+                for r in &self.records[g.records.clone()] {
                     out.extend(r.first_constraint..r.first_constraint + r.constraint_count);
                 }
             }
@@ -387,9 +459,9 @@ impl JointBlocks {
         use_bias: bool,
     ) {
         let bodies = Shared::new(bodies);
-        self.for_each_group(|scratch, records| {
+        self.for_each_group(|scratch, group| {
             // SAFETY: groups share no moving body; poses are only read.
-            unsafe { scratch.solve_group_velocities(records, poses, &bodies, inv_h, use_bias) };
+            unsafe { scratch.solve_group_velocities(group, poses, &bodies, inv_h, use_bias) };
             false
         });
     }
@@ -399,43 +471,49 @@ impl JointBlocks {
     /// Returns whether any pose moved.
     pub fn project_positions(&mut self, poses: &mut [RigidBody], bodies: &[SolverBody]) -> bool {
         let poses = Shared::new(poses);
-        self.for_each_group(|scratch, records| {
+        self.for_each_group(|scratch, group| {
             // SAFETY: groups share no moving body, and only moving bodies' poses are written.
-            unsafe { scratch.project_group(records, &poses, bodies) }
+            unsafe { scratch.project_group(group, &poses, bodies) }
         })
     }
 
     /// Runs `f` on each group solved directly, with a scratch of its own: on the calling thread
     /// for a few groups, else on all threads (groups share no moving body, so the result is
     /// the same). True if `f` returned true for any group.
-    fn for_each_group(
-        &mut self,
-        f: impl Fn(&mut Scratch, &[DistanceRecord]) -> bool + Sync,
-    ) -> bool {
+    fn for_each_group(&mut self, f: impl Fn(&mut Scratch, GroupView) -> bool + Sync) -> bool {
         const PARALLEL_GROUPS: usize = 64;
         let JointBlocks {
             records,
             groups,
+            couplings,
             scratch,
         } = self;
-        let direct = |&(start, end): &(usize, usize)| end - start <= MAX_BLOCK;
-        let records = &records[..];
+        let view = |g: &Group| GroupView {
+            records: &records[g.records.clone()],
+            couplings: &couplings[g.couplings.clone()],
+        };
+        let direct = |g: &&Group| g.records.len() <= MAX_BLOCK;
         if groups.len() < PARALLEL_GROUPS {
             let mut any = false;
-            for &(start, end) in groups.iter().filter(|g| direct(g)) {
-                any |= f(scratch, &records[start..end]);
+            for g in groups.iter().filter(direct) {
+                any |= f(scratch, view(g));
             }
             return any;
         }
         groups
             .par_iter()
             .with_min_len(16)
-            .filter(|g| direct(g))
-            .map_init(Scratch::default, |scratch, &(start, end)| {
-                f(scratch, &records[start..end])
-            })
+            .filter(direct)
+            .map_init(Scratch::default, |scratch, g| f(scratch, view(g)))
             .reduce(|| false, |a, b| a || b)
     }
+}
+
+/// One group's records and the pairs of them that share a body.
+#[derive(Clone, Copy)]
+struct GroupView<'a> {
+    records: &'a [DistanceRecord],
+    couplings: &'a [(usize, usize)],
 }
 
 impl Scratch {
@@ -445,12 +523,13 @@ impl Scratch {
     /// No other thread touches the group's moving bodies meanwhile.
     unsafe fn solve_group_velocities(
         &mut self,
-        records: &[DistanceRecord],
+        group: GroupView,
         poses: &[RigidBody],
         bodies: &Shared<SolverBody>,
         inv_h: f64,
         use_bias: bool,
     ) {
+        let records = group.records;
         if !self.load_geometry(records, |i| &poses[i]) {
             return;
         }
@@ -485,10 +564,10 @@ impl Scratch {
             let b = unsafe { bodies.get(i) };
             (b.inverse_mass, b.inverse_inertia)
         };
-        fill_matrix(&mut self.k, records, &self.geometries, &inverse);
+        self.fill_matrix(group, &inverse);
         if self.solve_ranges(n) {
             // SAFETY: as above.
-            unsafe { apply(records, &self.geometries, &self.lambda, bodies) };
+            unsafe { self.apply(records, bodies) };
         }
     }
 
@@ -498,10 +577,11 @@ impl Scratch {
     /// No other thread touches the group's moving bodies meanwhile.
     unsafe fn project_group(
         &mut self,
-        records: &[DistanceRecord],
+        group: GroupView,
         poses: &Shared<RigidBody>,
         bodies: &[SolverBody],
     ) -> bool {
+        let records = group.records;
         // SAFETY: the group's poses are written only by this call (caller's contract).
         if !self.load_geometry(records, |i| unsafe { poses.get(i) }) {
             return false;
@@ -519,12 +599,12 @@ impl Scratch {
             (self.u[i], self.lo[i], self.hi[i]) = (g.length, r.lower, r.upper);
         }
         let inverse = |i: usize| (bodies[i].inverse_mass, bodies[i].inverse_inertia);
-        fill_matrix(&mut self.k, records, &self.geometries, &inverse);
+        self.fill_matrix(group, &inverse);
         if !self.solve_ranges(n) {
             return false;
         }
         // SAFETY: as above.
-        unsafe { shift(records, &self.geometries, &self.lambda, poses, bodies) };
+        unsafe { self.shift(records, poses) };
         true
     }
 }
@@ -548,81 +628,147 @@ impl Scratch {
     }
 }
 
-fn fill_matrix(
-    k: &mut [f64],
-    records: &[DistanceRecord],
-    geometries: &[Geometry],
-    inverse: &impl Fn(usize) -> (f64, DMat3),
-) {
-    let n = records.len();
-    for i in 0..n {
-        for j in i..n {
-            let v = coupling(
-                &records[i],
-                &geometries[i],
-                &records[j],
-                &geometries[j],
-                inverse,
-            );
-            k[i * n + j] = v;
-            k[j * n + i] = v;
+impl Scratch {
+    /// The rows' Jacobians, then `K = J M^-1 J^T`: the diagonal and the entries of the records
+    /// that share a body (the others are zero).
+    fn fill_matrix(&mut self, group: GroupView, inverse: &impl Fn(usize) -> (f64, DMat3)) {
+        let (records, geometries) = (group.records, &self.geometries);
+        self.jacobians.clear();
+        let rows = records.iter().zip(geometries);
+        self.jacobians
+            .extend(rows.map(|(r, g)| jacobian(r, g, inverse)));
+        let n = records.len();
+        let row = |i: usize| (&records[i], &geometries[i], &self.jacobians[i]);
+        for i in 0..n {
+            self.k[i * n + i] = coupling(row(i), row(i));
+        }
+        for &(i, j) in group.couplings {
+            let v = coupling(row(i), row(j));
+            self.k[i * n + j] = v;
+            self.k[j * n + i] = v;
+        }
+    }
+
+    /// The impulses `lambda` along the rows, on the group's moving bodies (the others, shared
+    /// with other groups, are left alone: an impulse does not move them).
+    ///
+    /// # Safety
+    /// No other thread touches the group's moving bodies meanwhile.
+    unsafe fn apply(&self, records: &[DistanceRecord], bodies: &Shared<SolverBody>) {
+        let rows = records.iter().zip(&self.geometries).zip(&self.jacobians);
+        for (((r, g), jac), &l) in rows.zip(&self.lambda) {
+            if l == 0.0 {
+                continue;
+            }
+            for (end, (index, sign)) in [(r.body1, -1.0), (r.body2, 1.0)].into_iter().enumerate() {
+                // SAFETY: read, then written only if it moves: the caller's contract.
+                if unsafe { bodies.get(index) }.is_static() {
+                    continue;
+                }
+                let b = unsafe { bodies.get_mut(index) };
+                b.linear_velocity += (sign * l * jac.inverse_mass[end]) * g.axis;
+                b.angular_velocity += (sign * l) * jac.response[end];
+            }
+        }
+    }
+
+    /// The position change the impulses `lambda` would make in unit time, on the group's
+    /// moving bodies.
+    ///
+    /// # Safety
+    /// No other thread touches the group's moving bodies meanwhile.
+    unsafe fn shift(&self, records: &[DistanceRecord], poses: &Shared<RigidBody>) {
+        let rows = records.iter().zip(&self.geometries).zip(&self.jacobians);
+        for (((r, g), jac), &l) in rows.zip(&self.lambda) {
+            if l == 0.0 {
+                continue;
+            }
+            for (end, (index, sign)) in [(r.body1, -1.0), (r.body2, 1.0)].into_iter().enumerate() {
+                if jac.inverse_mass[end] == 0.0 {
+                    continue;
+                }
+                // SAFETY: a body with mass to move belongs to this group only.
+                let pose = unsafe { poses.get_mut(index) };
+                pose.position += (sign * l * jac.inverse_mass[end]) * g.axis;
+                let turn = (sign * l) * jac.response[end];
+                pose.orientation = crate::sim::integrate::rotate_by(pose.orientation, turn, 1.0);
+            }
         }
     }
 }
 
-/// The impulses `lambda` along the rows, on the group's moving bodies (the others, shared with
-/// other groups, are left alone: an impulse does not move them).
-///
-/// # Safety
-/// No other thread touches the group's moving bodies meanwhile.
-unsafe fn apply(
-    records: &[DistanceRecord],
-    geometries: &[Geometry],
-    lambda: &[f64],
-    bodies: &Shared<SolverBody>,
-) {
-    for ((r, g), &l) in records.iter().zip(geometries).zip(lambda) {
-        if l == 0.0 {
-            continue;
-        }
-        let p = l * g.axis;
-        for (index, arm, impulse) in [(r.body1, g.r1, -p), (r.body2, g.r2, p)] {
-            // SAFETY: read, then written only if it moves: the caller's contract.
-            if unsafe { bodies.get(index) }.is_static() {
-                continue;
-            }
-            unsafe { bodies.get_mut(index) }.apply(arm, impulse);
-        }
-    }
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sim::rng::Rng;
 
-/// The position change the impulses `lambda` would make in unit time, on the group's moving
-/// bodies.
-///
-/// # Safety
-/// No other thread touches the group's moving bodies meanwhile.
-unsafe fn shift(
-    records: &[DistanceRecord],
-    geometries: &[Geometry],
-    lambda: &[f64],
-    poses: &Shared<RigidBody>,
-    bodies: &[SolverBody],
-) {
-    for ((r, g), &l) in records.iter().zip(geometries).zip(lambda) {
-        if l == 0.0 {
-            continue;
-        }
-        let p = l * g.axis;
-        for (index, arm, impulse) in [(r.body1, g.r1, -p), (r.body2, g.r2, p)] {
-            let b = &bodies[index];
-            if b.inverse_mass == 0.0 {
-                continue;
+    /// `x` with `a x = b` by Gaussian elimination with partial pivoting (an independent solve).
+    fn eliminate(mut a: Vec<f64>, mut b: Vec<f64>, n: usize) -> Vec<f64> {
+        for c in 0..n {
+            let pivot = (c..n)
+                .max_by(|&i, &j| a[i * n + c].abs().total_cmp(&a[j * n + c].abs()))
+                .unwrap();
+            for k in 0..n {
+                a.swap(c * n + k, pivot * n + k);
             }
-            // SAFETY: a body with mass to move belongs to this group only.
-            let pose = unsafe { poses.get_mut(index) };
-            pose.position += b.inverse_mass * impulse;
-            let turn = b.inverse_inertia * arm.cross(impulse);
-            pose.orientation = crate::sim::integrate::rotate_by(pose.orientation, turn, 1.0);
+            b.swap(c, pivot);
+            for r in c + 1..n {
+                let f = a[r * n + c] / a[c * n + c];
+                for k in c..n {
+                    a[r * n + k] -= f * a[c * n + k];
+                }
+                b[r] -= f * b[c];
+            }
         }
+        let mut x = vec![0.0; n];
+        for r in (0..n).rev() {
+            let s: f64 = (r + 1..n).map(|k| a[r * n + k] * x[k]).sum();
+            x[r] = (b[r] - s) / a[r * n + r];
+        }
+        x
+    }
+
+    /// Symmetric positive definite matrices with the sparsity of a chain, of a branching tree in
+    /// a scrambled order (rows whose envelopes are ragged) and dense ones: the envelope
+    /// factorisation solves them as elimination does.
+    #[test]
+    fn envelope_cholesky_solves_sparse_and_dense_systems() {
+        let mut rng = Rng::new(7);
+        for (case, n) in [(0, 9), (1, 12), (2, 7), (1, MAX_BLOCK)] {
+            // Edges of a graph on the rows; K = D + sum over edges of a coupling (diagonally
+            // dominant, hence positive definite).
+            let edges: Vec<(usize, usize)> = match case {
+                0 => (1..n).map(|i| (i - 1, i)).collect(),
+                1 => (1..n)
+                    .map(|i| ((i * 7) % n, (i * 7 + (i % 3) + 1) % n))
+                    .collect(),
+                _ => (0..n)
+                    .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
+                    .collect(),
+            };
+            let mut k = vec![0.0; n * n];
+            for &(i, j) in edges.iter().filter(|(i, j)| i != j) {
+                let v = rng.range(-1.0, 1.0);
+                k[i * n + j] += v;
+                k[j * n + i] += v;
+            }
+            for i in 0..n {
+                let off: f64 = (0..n).filter(|&j| j != i).map(|j| k[i * n + j].abs()).sum();
+                k[i * n + i] = off + rng.range(0.1, 2.0);
+            }
+            let b: Vec<f64> = (0..n).map(|_| rng.range(-5.0, 5.0)).collect();
+            let expected = eliminate(k.clone(), b.clone(), n);
+            let mut x = b.clone();
+            assert!(cholesky_solve(&mut k.clone(), n, &mut x), "case {case}");
+            for (got, want) in x.iter().zip(&expected) {
+                assert!(
+                    (got - want).abs() < 1e-10 * (1.0 + want.abs()),
+                    "case {case}"
+                );
+            }
+        }
+        // Not positive definite: refused.
+        let mut k = vec![1.0, 2.0, 2.0, 1.0];
+        assert!(!cholesky_solve(&mut k, 2, &mut [1.0, 1.0]));
     }
 }
