@@ -351,6 +351,9 @@ impl Scratch {
             x,
             ..
         } = self;
+        if n == 1 {
+            return solve_one_range(u[0], lo[0], hi[0], k[0], &mut lambda[0]);
+        }
         side.clear();
         side.extend((0..n).map(|i| {
             if lo[i] == hi[i] {
@@ -389,6 +392,24 @@ impl Scratch {
         }
         true
     }
+}
+
+/// [`Scratch::solve_ranges`] for a single row (a pendulum, a rod to a fixed body): the rate
+/// `u` brought to the nearer end of `[lo, hi]` through `k`, or left alone inside it.
+fn solve_one_range(u: f64, lo: f64, hi: f64, k: f64, lambda: &mut f64) -> bool {
+    let target = if u < lo {
+        lo
+    } else if u > hi {
+        hi
+    } else {
+        *lambda = 0.0;
+        return true;
+    };
+    if k <= 1e-300 || !k.is_finite() {
+        return false;
+    }
+    *lambda = (target - u) / k;
+    true
 }
 
 /// Rows pushing the wrong way let go; rows now out of range are held. True if any changed.
