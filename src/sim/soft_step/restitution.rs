@@ -167,6 +167,10 @@ fn bouncing_groups(contacts: &Contacts, poses: &[RigidBody]) -> Vec<Vec<usize>> 
         constraints,
         points,
     } = *contacts;
+    // Most steps nothing bounces: no O(n) scratch then.
+    if points.iter().all(|p| p.restitution_impulse == 0.0) {
+        return Vec::new();
+    }
     let n = poses.len();
     let dynamic = |i: usize| i != GROUND && poses[i].is_awake();
     let mut parent: Vec<usize> = (0..n).collect();
