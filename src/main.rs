@@ -47,7 +47,8 @@ struct DefaultView {
 enum BenchCommand {
     /// ms/step against N for generated scenes: the coursework's loop vs tumble on 1 and all cores.
     Scale(cli::bench::ScaleArgs),
-    /// Error against run time per scenario, setting combination and time step.
+    /// Error against run time per scenario, setting combination and time step (run time: the
+    /// fastest of a job's runs, repeated until its steps took 0.1 s, at most 15 runs).
     Accuracy(cli::bench::AccuracyArgs),
     /// The tower and the chains for 100,000 steps: drift, violation, energy.
     Soak(cli::bench::SoakArgs),

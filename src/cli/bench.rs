@@ -221,7 +221,10 @@ pub fn accuracy(args: &AccuracyArgs) -> anyhow::Result<()> {
 fn print_accuracy(report: &AccuracyReport) {
     for (scenario_name, by_combo) in &report.results {
         let metric = primary_metric_of(scenario_name);
-        println!("\n{scenario_name} ({metric}; wall ms per simulated second in brackets)");
+        println!(
+            "\n{scenario_name} ({metric}; wall ms per simulated second in brackets, fastest of \
+             repeated runs)"
+        );
         print!("{:<24}", "combination \\ dt");
         for dt in &report.dts {
             print!("{:>22}", dt);
