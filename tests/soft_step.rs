@@ -396,7 +396,7 @@ fn trajectory(world: &mut World, steps: usize) -> Vec<f64> {
 
 #[test]
 fn results_do_not_depend_on_the_thread_count() {
-    // pile-1000 has colours of more than 64 contacts, which are solved in parallel; chain-1000
+    // pile-1000 has colours of more than 256 contacts, which are solved in parallel; chain-1000
     // has 100 chains, whose joint groups are solved in parallel.
     for (scene, steps) in [
         ("pile-120", 150),
