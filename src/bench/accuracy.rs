@@ -135,9 +135,11 @@ fn jobs(config: &AccuracyConfig) -> (Vec<Job>, Vec<f64>) {
         } else {
             vec![(scenario.name().to_string(), None)]
         };
+        // A scenario's combinations at one dt run one after another (their runs interleaved,
+        // see [`measure_together`]): the times compared with each other are taken close in time.
         for (name, restitution) in &variants {
-            for &(combination, ref base, engine) in &combos {
-                for &dt in &dts {
+            for &dt in &dts {
+                for &(combination, ref base, engine) in &combos {
                     let mut settings = Settings {
                         time_step: dt,
                         ..base.clone()
@@ -164,25 +166,66 @@ fn jobs(config: &AccuracyConfig) -> (Vec<Job>, Vec<f64>) {
 const MIN_MEASURED_SECONDS: f64 = 0.1;
 const MAX_RUNS: usize = 15;
 
-/// The job's outcome with its fastest run's time: a job whose steps take a few milliseconds in
-/// all (the pendulum at dt 0.04: 1.5 ms) is run again until its steps have taken
-/// [`MIN_MEASURED_SECONDS`], at most [`MAX_RUNS`] times. The runs are identical (the engines
-/// are deterministic) but their times are not: a single short run moved by 30 % between
-/// sweeps, more than the differences between engines it is meant to show. The fastest is the
-/// one least disturbed by the rest of the machine.
-fn measure(job: &Job) -> scenarios::Outcome {
-    let mut outcome = scenarios::run_with(job.scenario, &job.settings, job.engine);
-    let seconds = |o: &scenarios::Outcome| o.wall_per_sim_second * job.scenario.duration();
-    let mut measured = seconds(&outcome);
+/// The jobs' outcomes (one scenario at one dt), each with its fastest run's time: a job whose
+/// steps take a few milliseconds in all (the pendulum at dt 0.04: 1.5 ms) is run again until
+/// its steps have taken [`MIN_MEASURED_SECONDS`], at most [`MAX_RUNS`] times, in rounds over
+/// the jobs, so every engine's runs meet the machine in the same state. The runs are identical
+/// (the engines are deterministic) but their times are not: a single short run moved by 30 %
+/// between sweeps, more than the differences between the engines it is meant to show. The
+/// fastest is the one least disturbed by the rest of the machine.
+fn measure_together(jobs: &[Job]) -> Vec<scenarios::Outcome> {
+    let run = |job: &Job| scenarios::run_with(job.scenario, &job.settings, job.engine);
+    let seconds =
+        |job: &Job, o: &scenarios::Outcome| o.wall_per_sim_second * job.scenario.duration();
+    let mut outcomes: Vec<scenarios::Outcome> = jobs.iter().map(run).collect();
+    let mut measured: Vec<f64> = jobs
+        .iter()
+        .zip(&outcomes)
+        .map(|(j, o)| seconds(j, o))
+        .collect();
     for _ in 1..MAX_RUNS {
-        if measured >= MIN_MEASURED_SECONDS {
+        let short: Vec<usize> = (0..jobs.len())
+            .filter(|&k| measured[k] < MIN_MEASURED_SECONDS)
+            .collect();
+        if short.is_empty() {
             break;
         }
-        let again = scenarios::run_with(job.scenario, &job.settings, job.engine);
-        measured += seconds(&again);
-        outcome.wall_per_sim_second = outcome.wall_per_sim_second.min(again.wall_per_sim_second);
+        for k in short {
+            let again = run(&jobs[k]);
+            measured[k] += seconds(&jobs[k], &again);
+            let fastest = outcomes[k]
+                .wall_per_sim_second
+                .min(again.wall_per_sim_second);
+            outcomes[k].wall_per_sim_second = fastest;
+        }
     }
-    outcome
+    outcomes
+}
+
+/// One job's outcome into the results and the CSV.
+fn record(
+    job: &Job,
+    outcome: &scenarios::Outcome,
+    results: &mut AccuracyResults,
+    csv: &mut String,
+) {
+    for (metric, value) in &outcome.metrics {
+        csv.push_str(&format!(
+            "{},{},{},{:.6e},{metric},{value:.6e}\n",
+            job.name, job.combination, job.dt, outcome.wall_per_sim_second
+        ));
+    }
+    let row = Row {
+        wall_per_sim_second: outcome.wall_per_sim_second,
+        metrics: outcome.metrics.iter().cloned().collect(),
+        finite: outcome.finite,
+    };
+    results
+        .entry(job.name.clone())
+        .or_default()
+        .entry(job.combination.to_string())
+        .or_default()
+        .insert(format!("{}", job.dt), row);
 }
 
 /// Runs the sweep, writes `accuracy.csv` and one plot per scenario into `config.out`.
@@ -201,27 +244,15 @@ pub fn run(config: &AccuracyConfig, progress: &dyn Progress) -> anyhow::Result<A
     if let Some(first) = jobs.first() {
         scenarios::run_with(first.scenario, &first.settings, first.engine);
     }
-    for (k, job) in jobs.iter().enumerate() {
-        progress.message(&format!("{} {} dt={}", job.name, job.combination, job.dt));
-        let outcome = measure(job);
-        for (metric, value) in &outcome.metrics {
-            csv.push_str(&format!(
-                "{},{},{},{:.6e},{metric},{value:.6e}\n",
-                job.name, job.combination, job.dt, outcome.wall_per_sim_second
-            ));
+    let mut done = 0;
+    for together in jobs.chunk_by(|a, b| (&a.name, a.dt) == (&b.name, b.dt)) {
+        let first = &together[0];
+        progress.message(&format!("{} dt={}", first.name, first.dt));
+        for (job, outcome) in together.iter().zip(measure_together(together)) {
+            record(job, &outcome, &mut results, &mut csv);
         }
-        let row = Row {
-            wall_per_sim_second: outcome.wall_per_sim_second,
-            metrics: outcome.metrics.iter().cloned().collect(),
-            finite: outcome.finite,
-        };
-        results
-            .entry(job.name.clone())
-            .or_default()
-            .entry(job.combination.to_string())
-            .or_default()
-            .insert(format!("{}", job.dt), row);
-        progress.set_position(k as u64 + 1);
+        done += together.len();
+        progress.set_position(done as u64);
     }
     progress.finish();
     std::fs::create_dir_all(&config.out)?;
