@@ -670,26 +670,46 @@ impl Scratch {
         }
     }
 
+    /// Each end of each row with an impulse: the body, and the change of its linear and its
+    /// angular velocity that the impulse `lambda` makes (the change of position and the
+    /// rotation it would make in unit time), and the body's inverse mass.
+    fn moves<'a>(
+        &'a self,
+        records: &'a [DistanceRecord],
+    ) -> impl Iterator<Item = (usize, DVec3, DVec3, f64)> + 'a {
+        let rows = records.iter().zip(&self.geometries).zip(&self.jacobians);
+        rows.zip(&self.lambda)
+            .filter(|(_, l)| **l != 0.0)
+            .flat_map(|(((r, g), jac), &l)| {
+                [(r.body1, -1.0), (r.body2, 1.0)]
+                    .into_iter()
+                    .enumerate()
+                    .map(move |(end, (index, sign))| {
+                        let m = jac.inverse_mass[end];
+                        (
+                            index,
+                            (sign * l * m) * g.axis,
+                            (sign * l) * jac.response[end],
+                            m,
+                        )
+                    })
+            })
+    }
+
     /// The impulses `lambda` along the rows, on the group's moving bodies (the others, shared
     /// with other groups, are left alone: an impulse does not move them).
     ///
     /// # Safety
     /// No other thread touches the group's moving bodies meanwhile.
     unsafe fn apply(&self, records: &[DistanceRecord], bodies: &Shared<SolverBody>) {
-        let rows = records.iter().zip(&self.geometries).zip(&self.jacobians);
-        for (((r, g), jac), &l) in rows.zip(&self.lambda) {
-            if l == 0.0 {
+        for (index, linear, angular, _) in self.moves(records) {
+            // SAFETY: read, then written only if it moves: the caller's contract.
+            if unsafe { bodies.get(index) }.is_static() {
                 continue;
             }
-            for (end, (index, sign)) in [(r.body1, -1.0), (r.body2, 1.0)].into_iter().enumerate() {
-                // SAFETY: read, then written only if it moves: the caller's contract.
-                if unsafe { bodies.get(index) }.is_static() {
-                    continue;
-                }
-                let b = unsafe { bodies.get_mut(index) };
-                b.linear_velocity += (sign * l * jac.inverse_mass[end]) * g.axis;
-                b.angular_velocity += (sign * l) * jac.response[end];
-            }
+            let b = unsafe { bodies.get_mut(index) };
+            b.linear_velocity += linear;
+            b.angular_velocity += angular;
         }
     }
 
@@ -699,21 +719,14 @@ impl Scratch {
     /// # Safety
     /// No other thread touches the group's moving bodies meanwhile.
     unsafe fn shift(&self, records: &[DistanceRecord], poses: &Shared<RigidBody>) {
-        let rows = records.iter().zip(&self.geometries).zip(&self.jacobians);
-        for (((r, g), jac), &l) in rows.zip(&self.lambda) {
-            if l == 0.0 {
+        for (index, shift, turn, inverse_mass) in self.moves(records) {
+            if inverse_mass == 0.0 {
                 continue;
             }
-            for (end, (index, sign)) in [(r.body1, -1.0), (r.body2, 1.0)].into_iter().enumerate() {
-                if jac.inverse_mass[end] == 0.0 {
-                    continue;
-                }
-                // SAFETY: a body with mass to move belongs to this group only.
-                let pose = unsafe { poses.get_mut(index) };
-                pose.position += (sign * l * jac.inverse_mass[end]) * g.axis;
-                let turn = (sign * l) * jac.response[end];
-                pose.orientation = crate::sim::integrate::rotate_by(pose.orientation, turn, 1.0);
-            }
+            // SAFETY: a body with mass to move belongs to this group only.
+            let pose = unsafe { poses.get_mut(index) };
+            pose.position += shift;
+            pose.orientation = crate::sim::integrate::rotate_by(pose.orientation, turn, 1.0);
         }
     }
 }
