@@ -670,30 +670,29 @@ impl Scratch {
         }
     }
 
-    /// Each end of each row with an impulse: the body, and the change of its linear and its
-    /// angular velocity that the impulse `lambda` makes (the change of position and the
-    /// rotation it would make in unit time), and the body's inverse mass.
-    fn moves<'a>(
-        &'a self,
-        records: &'a [DistanceRecord],
-    ) -> impl Iterator<Item = (usize, DVec3, DVec3, f64)> + 'a {
+    /// Calls `f` for each end of each row with an impulse: the body, the change of its linear
+    /// and its angular velocity that the impulse `lambda` makes (the change of position and
+    /// the rotation it would make in unit time), and the body's inverse mass.
+    fn for_each_move(
+        &self,
+        records: &[DistanceRecord],
+        mut f: impl FnMut(usize, DVec3, DVec3, f64),
+    ) {
         let rows = records.iter().zip(&self.geometries).zip(&self.jacobians);
-        rows.zip(&self.lambda)
-            .filter(|(_, l)| **l != 0.0)
-            .flat_map(|(((r, g), jac), &l)| {
-                [(r.body1, -1.0), (r.body2, 1.0)]
-                    .into_iter()
-                    .enumerate()
-                    .map(move |(end, (index, sign))| {
-                        let m = jac.inverse_mass[end];
-                        (
-                            index,
-                            (sign * l * m) * g.axis,
-                            (sign * l) * jac.response[end],
-                            m,
-                        )
-                    })
-            })
+        for (((r, g), jac), &l) in rows.zip(&self.lambda) {
+            if l == 0.0 {
+                continue;
+            }
+            for (end, (index, sign)) in [(r.body1, -1.0), (r.body2, 1.0)].into_iter().enumerate() {
+                let m = jac.inverse_mass[end];
+                f(
+                    index,
+                    (sign * l * m) * g.axis,
+                    (sign * l) * jac.response[end],
+                    m,
+                );
+            }
+        }
     }
 
     /// The impulses `lambda` along the rows, on the group's moving bodies (the others, shared
@@ -702,15 +701,15 @@ impl Scratch {
     /// # Safety
     /// No other thread touches the group's moving bodies meanwhile.
     unsafe fn apply(&self, records: &[DistanceRecord], bodies: &Shared<SolverBody>) {
-        for (index, linear, angular, _) in self.moves(records) {
+        self.for_each_move(records, |index, linear, angular, _| {
             // SAFETY: read, then written only if it moves: the caller's contract.
             if unsafe { bodies.get(index) }.is_static() {
-                continue;
+                return;
             }
             let b = unsafe { bodies.get_mut(index) };
             b.linear_velocity += linear;
             b.angular_velocity += angular;
-        }
+        });
     }
 
     /// The position change the impulses `lambda` would make in unit time, on the group's
@@ -719,15 +718,15 @@ impl Scratch {
     /// # Safety
     /// No other thread touches the group's moving bodies meanwhile.
     unsafe fn shift(&self, records: &[DistanceRecord], poses: &Shared<RigidBody>) {
-        for (index, shift, turn, inverse_mass) in self.moves(records) {
+        self.for_each_move(records, |index, shift, turn, inverse_mass| {
             if inverse_mass == 0.0 {
-                continue;
+                return;
             }
             // SAFETY: a body with mass to move belongs to this group only.
             let pose = unsafe { poses.get_mut(index) };
             pose.position += shift;
             pose.orientation = crate::sim::integrate::rotate_by(pose.orientation, turn, 1.0);
-        }
+        });
     }
 }
 
