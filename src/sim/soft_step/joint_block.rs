@@ -628,9 +628,7 @@ impl Scratch {
         unsafe { self.shift(records, poses) };
         true
     }
-}
 
-impl Scratch {
     /// Each record's geometry at the current poses (`pose(i)`: body i's); false if a record
     /// has none.
     fn load_geometry<'p>(
@@ -647,9 +645,7 @@ impl Scratch {
         }
         true
     }
-}
 
-impl Scratch {
     /// The rows' Jacobians, then `K = J M^-1 J^T`: the diagonal and the entries of the records
     /// that share a body (the others are zero).
     fn fill_matrix(&mut self, group: GroupView, inverse: &impl Fn(usize) -> (f64, DMat3)) {
