@@ -227,5 +227,17 @@ pub fn any_awake(bodies: &[RigidBody]) -> bool {
 
 /// Whether two bodies can collide: not when either is frozen, nor when both are fixed.
 pub fn may_collide(a: &RigidBody, b: &RigidBody) -> bool {
-    !(a.quarantined || b.quarantined || a.fixed && b.fixed)
+    flags_may_collide(collision_flags(a), collision_flags(b))
+}
+
+/// What [`may_collide`] reads of a body in one byte (bit 0 frozen, bit 1 fixed): a broad phase
+/// over many bodies filters its pairs from a compact array instead of the bodies themselves
+/// (at scatter-100000 reading two bodies per candidate pair missed the cache every time).
+pub fn collision_flags(body: &RigidBody) -> u8 {
+    body.quarantined as u8 | (body.fixed as u8) << 1
+}
+
+/// [`may_collide`] on two bodies' [`collision_flags`].
+pub fn flags_may_collide(a: u8, b: u8) -> bool {
+    (a | b) & 1 == 0 && a & b & 2 == 0
 }

@@ -3,7 +3,7 @@
 //! poses left by the pairs before it), then every body against the ground plane.
 
 use super::contact::{ContactParams, resolve_contact};
-use crate::sim::body::{RigidBody, may_collide};
+use crate::sim::body::{RigidBody, collision_flags, flags_may_collide, may_collide};
 use crate::sim::broad_phase::BroadPhase;
 use crate::sim::constraint::pair_mut;
 use crate::sim::narrow_phase::{
@@ -95,11 +95,11 @@ impl ContactStage {
     ) {
         let Bodies { bodies, shapes } = world;
         let mut queue = {
-            let bodies = &*bodies;
+            let flags: Vec<u8> = bodies.iter().map(collision_flags).collect();
             broad.candidate_pairs(
                 bodies,
                 shapes,
-                |i, j| may_collide(&bodies[i], &bodies[j]),
+                |i, j| flags_may_collide(flags[i], flags[j]),
                 &mut stats.pairs_tested,
             )
         };
