@@ -171,6 +171,9 @@ pub struct ScaleReport {
     /// Ratios of medians per scene and size (`a_over_b` = a's ms / b's ms), over the steps both
     /// runs measured.
     pub speedups: BTreeMap<String, BTreeMap<String, f64>>,
+    /// Family -> variant -> "N1->N2" -> the larger size's median ms per step over the smaller's,
+    /// over the steps both runs measured ([`growth`]).
+    pub growth: BTreeMap<String, BTreeMap<String, BTreeMap<String, f64>>>,
     /// "scene-N variant: why" for each run left out.
     pub left_out: Vec<String>,
     #[serde(skip)]
@@ -396,6 +399,7 @@ pub fn run(config: &ScaleConfig, progress: &dyn Progress) -> anyhow::Result<Scal
             "the --accurate preset (soft step, 4 substeps, friction 0.5, sleeping) with restitution {ACCURATE_RESTITUTION}"
         ),
         speedups: speedups(&results),
+        growth: growth(&results),
         results,
         left_out,
         csv,
@@ -425,16 +429,54 @@ fn speedups(
         let entry = speedups.entry(key.clone()).or_default();
         for (a, b) in RATIOS {
             if let (Some(run_a), Some(run_b)) = (by_variant.get(a), by_variant.get(b)) {
-                let shared = run_a.step_seconds.len().min(run_b.step_seconds.len());
-                let (a_ms, b_ms) = (
-                    median_ms(&run_a.step_seconds[..shared]),
-                    median_ms(&run_b.step_seconds[..shared]),
-                );
-                entry.insert(format!("{a}_over_{b}"), a_ms / b_ms.max(1e-9));
+                entry.insert(format!("{a}_over_{b}"), shared_ratio(run_a, run_b));
             }
         }
     }
     speedups
+}
+
+/// `a`'s median ms per step over `b`'s, both over the first steps both runs measured.
+fn shared_ratio(a: &Measurement, b: &Measurement) -> f64 {
+    let shared = a.step_seconds.len().min(b.step_seconds.len());
+    median_ms(&a.step_seconds[..shared]) / median_ms(&b.step_seconds[..shared]).max(1e-9)
+}
+
+/// How each family's cost grows from one size to the next, per variant: the larger size's
+/// median over the smaller's, over the steps both measured. A size cut short by the time cap
+/// stops before the later, dearer part of a scene (scatter's top layer lands at 6.4 s), so
+/// the whole runs' medians would compare different stretches of simulated time.
+fn growth(
+    results: &BTreeMap<String, BTreeMap<String, Measurement>>,
+) -> BTreeMap<String, BTreeMap<String, BTreeMap<String, f64>>> {
+    let mut sizes: BTreeMap<&str, Vec<(usize, &BTreeMap<String, Measurement>)>> = BTreeMap::new();
+    for (key, by_variant) in results {
+        if let Some((family, n)) = key.rsplit_once('-')
+            && let Ok(n) = n.parse::<usize>()
+        {
+            sizes.entry(family).or_default().push((n, by_variant));
+        }
+    }
+    let mut out: BTreeMap<String, BTreeMap<String, BTreeMap<String, f64>>> = BTreeMap::new();
+    for (family, mut runs) in sizes {
+        runs.sort_by_key(|(n, _)| *n);
+        for pair in runs.windows(2) {
+            let ((small, at_small), (large, at_large)) = (pair[0], pair[1]);
+            for (variant, run_large) in at_large {
+                if let Some(run_small) = at_small.get(variant) {
+                    out.entry(family.to_string())
+                        .or_default()
+                        .entry(variant.clone())
+                        .or_default()
+                        .insert(
+                            format!("{small}->{large}"),
+                            shared_ratio(run_large, run_small),
+                        );
+                }
+            }
+        }
+    }
+    out
 }
 
 /// The CSV columns after `variant`: the median, each stage's mean ms, then counts.
@@ -553,5 +595,36 @@ mod tests {
         let ratios = speedups(&results);
         let ratio = ratios["pile-10000"]["accurate_1_thread_over_accurate_all_cores"];
         assert!((ratio - 2.0).abs() < 1e-12, "{ratio}");
+    }
+
+    /// scatter-100000 cut by the time cap after 3 steps, scatter-10000 on into dear steps: its
+    /// growth compares the 3 steps both measured (10x), not the whole medians (30 / 2 = 15x);
+    /// sizes in numeric order (10000 after 1000, not before 200), one entry per variant run at
+    /// both sizes.
+    #[test]
+    fn growth_compares_consecutive_sizes_over_shared_steps() {
+        let mut results = BTreeMap::new();
+        let mut at = |n: usize, variant: &str, steps: Vec<f64>| {
+            results
+                .entry(format!("scatter-{n}"))
+                .or_insert_with(BTreeMap::new)
+                .insert(variant.to_string(), run_of(steps));
+        };
+        at(200, "tumble_1_thread", vec![0.1; 5]);
+        at(1000, "tumble_1_thread", vec![0.2; 5]);
+        at(
+            10000,
+            "tumble_1_thread",
+            vec![1.0, 1.0, 1.0, 9.0, 9.0, 9.0, 9.0],
+        );
+        at(100000, "tumble_1_thread", vec![10.0; 3]);
+        at(100000, "accurate_all_cores", vec![10.0; 3]);
+        let growth = growth(&results);
+        let g = &growth["scatter"]["tumble_1_thread"];
+        assert_eq!(g.len(), 3);
+        assert!((g["200->1000"] - 2.0).abs() < 1e-12);
+        assert!((g["1000->10000"] - 5.0).abs() < 1e-12);
+        assert!((g["10000->100000"] - 10.0).abs() < 1e-12);
+        assert!(!growth["scatter"].contains_key("accurate_all_cores"));
     }
 }

@@ -181,6 +181,23 @@ fn print_scale(report: &ScaleReport) {
             }
         }
     }
+    if !report.growth.is_empty() {
+        println!(
+            "\ngrowth from one size to the next (larger median / smaller, over the steps both measured):"
+        );
+        for (family, by_variant) in &report.growth {
+            for (variant, steps) in by_variant {
+                let mut steps: Vec<_> = steps.iter().collect();
+                // Keys are "N1->N2": in order of N1, not of the text.
+                steps.sort_by_key(|(k, _)| {
+                    k.split('-').next().and_then(|n| n.parse::<usize>().ok())
+                });
+                let parts: Vec<String> =
+                    steps.iter().map(|(k, v)| format!("{k}: {v:.1}x")).collect();
+                println!("  {family:<8} {variant:<18} {}", parts.join(", "));
+            }
+        }
+    }
     if !report.left_out.is_empty() {
         println!("\nleft out:");
         for why in &report.left_out {
