@@ -442,6 +442,9 @@ fn shared_ratio(a: &Measurement, b: &Measurement) -> f64 {
     median_ms(&a.step_seconds[..shared]) / median_ms(&b.step_seconds[..shared]).max(1e-9)
 }
 
+/// Each size's runs of one scene family, by variant.
+type SizeRuns<'a> = Vec<(usize, &'a BTreeMap<String, Measurement>)>;
+
 /// How each family's cost grows from one size to the next, per variant: the larger size's
 /// median over the smaller's, over the steps both measured. A size cut short by the time cap
 /// stops before the later, dearer part of a scene (scatter's top layer lands at 6.4 s), so
@@ -449,7 +452,7 @@ fn shared_ratio(a: &Measurement, b: &Measurement) -> f64 {
 fn growth(
     results: &BTreeMap<String, BTreeMap<String, Measurement>>,
 ) -> BTreeMap<String, BTreeMap<String, BTreeMap<String, f64>>> {
-    let mut sizes: BTreeMap<&str, Vec<(usize, &BTreeMap<String, Measurement>)>> = BTreeMap::new();
+    let mut sizes: BTreeMap<&str, SizeRuns> = BTreeMap::new();
     for (key, by_variant) in results {
         if let Some((family, n)) = key.rsplit_once('-')
             && let Ok(n) = n.parse::<usize>()

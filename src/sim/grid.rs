@@ -418,7 +418,11 @@ mod tests {
             .map(|k: usize| {
                 let centre = DVec3::new(next(), next(), next()) * 50.0;
                 let half = DVec3::new(next(), next(), next()) * 2.0 + DVec3::splat(0.2);
-                let half = if k % 89 == 0 { half * 30.0 } else { half };
+                let half = if k.is_multiple_of(89) {
+                    half * 30.0
+                } else {
+                    half
+                };
                 Aabb {
                     min: centre - half,
                     max: centre + half,
