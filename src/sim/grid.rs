@@ -38,7 +38,9 @@ type CellMap = HashMap<u64, Vec<u32>, BuildHasherDefault<CellHasher>>;
 /// One body in one cell. Two bodies sharing a cell meet there first when, along each axis, the
 /// cell is the lowest of one of their ranges (the first shared cell is the maximum of the two
 /// lowest corners): the walk decides that from the two entries alone, without looking up
-/// either body's range (at scatter-100000 those lookups were a third of the step).
+/// either body's range (at scatter-100000 those lookups were 41 % of the walk's samples, a sixth
+/// of the step). Body indices take 29 bits: half a billion bodies, far beyond what fits in
+/// memory at 300 bytes each.
 #[derive(Clone, Copy)]
 struct CellEntry(u32);
 
