@@ -4,21 +4,34 @@
 //! an active-set loop; positions are then projected the same way (non-linear Gauss-Seidel with
 //! an exact block). Gauss-Seidel would need about as many sweeps as a chain has links to pass a
 //! load from its end to its anchor (the coursework needs hundreds of visits per step); a
-//! direct solve passes it in one. Groups larger than [`MAX_BLOCK`] rows fall back to
-//! Gauss-Seidel ([`super::joint_solver`]).
+//! direct solve passes it in one. `K` is kept by its envelope ([`envelope`]), so a chain costs
+//! time linear in its length; groups whose envelope exceeds [`MAX_ENVELOPE`] entries fall back
+//! to Gauss-Seidel ([`super::joint_solver`]).
 
 use super::constraint_graph::Shared;
+use super::envelope::{self, Row};
 use super::solver_body::SolverBody;
 use crate::sim::body::RigidBody;
 use crate::sim::constraint::DistanceConstraint;
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
+use std::collections::HashMap;
 use std::ops::Range;
 
-/// Largest group solved directly (rows of one connected group of bodies).
-pub const MAX_BLOCK: usize = 48;
+/// Largest envelope of `K` (entries on and left of the diagonal, from each row's first row
+/// sharing a body with it) solved directly: a chain of 30,000 links, a group of 360 records all
+/// on one body (512 KiB of `K`).
+pub const MAX_ENVELOPE: usize = 1 << 16;
 /// Active-set rounds per solve (each drops or adds the rows that broke their limits).
 const ACTIVE_SET_ROUNDS: usize = 8;
+/// Projections of a group's positions per step at most: each projects the rows' linearisation
+/// at the poses it starts from, so where links turn far in a step (a rope's end whipping at
+/// 80 units/s) one leaves them stretched by up to a tenth of their length; the next ones start
+/// from closer poses (non-linear Gauss-Seidel, with an exact block).
+const PROJECTION_ROUNDS: usize = 16;
+/// After the first projection, a group is projected again only while a row is outside its
+/// bounds by more than this fraction of the bound.
+const PROJECTION_TOLERANCE: f64 = 1e-6;
 
 /// One constraint record: the distance between two body points kept within
 /// `[lower, upper]` (equal bounds: a rigid rod).
@@ -38,13 +51,42 @@ pub struct DistanceRecord {
 
 /// Which side of its range a row is held on in one solve.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-enum Side {
+pub enum Side {
     #[default]
     Free,
     Lower,
     Upper,
     /// Equal bounds: held from both sides.
     Both,
+}
+
+/// The active sets the last solves of each group ended with, per record (velocities, and
+/// positions): the next solve starts from them. From one pass to the next few rows change
+/// side, so the active-set loop ends in a round or two; started from the rows violated
+/// alone, a long rope whose links go slack and taut again ran out of rounds (1,000 links
+/// at dt 0.02: 1.7 % of the rest length stretched, 0.16 % with four times the rounds).
+/// Where the loop ends within its rounds the result is the same (the final active set's
+/// system), so the start is a speed and convergence matter only.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct HeldSides {
+    velocities: Vec<Side>,
+    positions: Vec<Side>,
+}
+
+impl HeldSides {
+    /// Sized for `records` records (all free if the count changed).
+    fn fit(&mut self, records: usize) {
+        for sides in [&mut self.velocities, &mut self.positions] {
+            if sides.len() != records {
+                sides.clear();
+                sides.resize(records, Side::Free);
+            }
+        }
+    }
+
+    pub fn heap_bytes(&self) -> usize {
+        (self.velocities.capacity() + self.positions.capacity()) * size_of::<Side>()
+    }
 }
 
 /// A record's geometry at the current poses.
@@ -73,6 +115,14 @@ struct Jacobian {
 pub struct Group {
     pub records: Range<usize>,
     couplings: Range<usize>,
+    /// Entries of `K`'s envelope; above [`MAX_ENVELOPE`] the group is left to Gauss-Seidel.
+    envelope: usize,
+}
+
+impl Group {
+    fn direct(&self) -> bool {
+        self.envelope <= MAX_ENVELOPE
+    }
 }
 
 /// The records of the world's constraints, grouped by connected bodies, and the buffers one
@@ -83,6 +133,10 @@ pub struct JointBlocks {
     pub groups: Vec<Group>,
     /// Pairs (i < j) of records of one group that share a body, by index within the group.
     couplings: Vec<(usize, usize)>,
+    /// Per record, where its row of its group's `K` lies ([`envelope`]), and the last row of
+    /// the group whose envelope reaches its column (both within the group).
+    rows: Vec<Row>,
+    reach: Vec<usize>,
     scratch: Scratch,
 }
 
@@ -95,11 +149,15 @@ struct Scratch {
     lo: Vec<f64>,
     hi: Vec<f64>,
     lambda: Vec<f64>,
+    /// `K` by its envelope, in the group's layout.
     k: Vec<f64>,
     side: Vec<Side>,
     active: Vec<usize>,
+    /// `K`'s rows and columns of the active rows, and their layout.
     sub: Vec<f64>,
+    sub_rows: Vec<Row>,
     x: Vec<f64>,
+    inverse_diagonal: Vec<f64>,
 }
 
 impl JointBlocks {
@@ -135,27 +193,38 @@ impl JointBlocks {
             .collect();
         keyed.sort_by_key(|(group, _)| *group);
         let records: Vec<DistanceRecord> = keyed.iter().map(|(_, r)| *r).collect();
-        let (mut groups, mut couplings) = (Vec::new(), Vec::new());
+        let mut blocks = Self {
+            records,
+            ..Self::default()
+        };
         let mut start = 0;
         for k in 1..=keyed.len() {
             if k == keyed.len() || keyed[k].0 != keyed[start].0 {
-                let first = couplings.len();
-                if k - start <= MAX_BLOCK {
-                    couplings.extend(sharing_pairs(&records[start..k]));
-                }
-                groups.push(Group {
-                    records: start..k,
-                    couplings: first..couplings.len(),
-                });
+                blocks.add_group(start..k);
                 start = k;
             }
         }
-        Self {
-            records,
-            groups,
-            couplings,
-            scratch: Scratch::default(),
+        blocks
+    }
+
+    /// The group of `records`: its envelope, and if it is solved directly, its couplings.
+    fn add_group(&mut self, records: Range<usize>) {
+        let group_records = &self.records[records.clone()];
+        let mut rows = Vec::new();
+        let envelope = envelope::layout(first_sharing(group_records), &mut rows);
+        let first = self.couplings.len();
+        if envelope <= MAX_ENVELOPE {
+            self.couplings.extend(sharing_pairs(group_records));
         }
+        let mut reach = Vec::new();
+        envelope::reach(&rows, &mut reach);
+        self.rows.extend(rows);
+        self.reach.extend(reach);
+        self.groups.push(Group {
+            records,
+            couplings: first..self.couplings.len(),
+            envelope,
+        });
     }
 
     /// Whether the grouping still fits these constraints and bodies (same count of records;
@@ -170,18 +239,41 @@ impl JointBlocks {
     }
 }
 
-/// The pairs (i < j) of `records` that share a body.
-fn sharing_pairs(records: &[DistanceRecord]) -> impl Iterator<Item = (usize, usize)> + '_ {
-    let shares = |a: &DistanceRecord, b: &DistanceRecord| {
-        [a.body1, a.body2]
-            .iter()
-            .any(|x| *x == b.body1 || *x == b.body2)
-    };
-    (0..records.len()).flat_map(move |i| {
-        (i + 1..records.len())
-            .filter(move |&j| shares(&records[i], &records[j]))
-            .map(move |j| (i, j))
-    })
+/// For each record, the first record (by index, at most its own) that shares a body with it:
+/// where its row of `K` starts.
+fn first_sharing(records: &[DistanceRecord]) -> Vec<usize> {
+    let mut first_on: HashMap<usize, usize> = HashMap::new();
+    let mut out = Vec::with_capacity(records.len());
+    for (j, r) in records.iter().enumerate() {
+        let mut first = j;
+        for body in [r.body1, r.body2] {
+            first = first.min(*first_on.entry(body).or_insert(j));
+        }
+        out.push(first);
+    }
+    out
+}
+
+/// The pairs (i < j) of `records` that share a body, in increasing order.
+fn sharing_pairs(records: &[DistanceRecord]) -> Vec<(usize, usize)> {
+    let mut on: HashMap<usize, Vec<usize>> = HashMap::new();
+    for (j, r) in records.iter().enumerate() {
+        on.entry(r.body1).or_default().push(j);
+        if r.body2 != r.body1 {
+            on.entry(r.body2).or_default().push(j);
+        }
+    }
+    let mut pairs: Vec<(usize, usize)> = on
+        .values()
+        .flat_map(|list| {
+            list.iter()
+                .enumerate()
+                .flat_map(move |(a, &i)| list[a + 1..].iter().map(move |&j| (i, j)))
+        })
+        .collect();
+    pairs.sort_unstable();
+    pairs.dedup();
+    pairs
 }
 
 /// Consecutive lower and upper inequalities on the same points become one record.
@@ -274,71 +366,59 @@ fn coupling(
     k
 }
 
-/// Solves `K_AA x = rhs_A` for the active rows (Cholesky, in place); false if not positive
-/// definite. Only each row's envelope is visited (from its first non-zero entry to the
-/// diagonal), where the factor's non-zeros stay (George and Liu, "Computer Solution of Large
-/// Sparse Positive Definite Systems", 1981): a chain in link order is tridiagonal, so the
-/// factorisation and both substitutions take time linear in its length.
-fn cholesky_solve(k: &mut [f64], n: usize, x: &mut [f64]) -> bool {
-    debug_assert!(n <= MAX_BLOCK);
-    let mut first = [0usize; MAX_BLOCK];
-    let mut inverse_diagonal = [0.0f64; MAX_BLOCK];
-    for i in 0..n {
-        first[i] = (0..i).find(|&p| k[i * n + p] != 0.0).unwrap_or(i);
-    }
-    for j in 0..n {
-        let row_j = j * n;
-        let mut d = k[row_j + j];
-        for p in first[j]..j {
-            d -= k[row_j + p] * k[row_j + p];
-        }
-        if d <= 1e-300 || !d.is_finite() {
-            return false;
-        }
-        let d = d.sqrt();
-        k[row_j + j] = d;
-        inverse_diagonal[j] = 1.0 / d;
-        for i in (j + 1..n).filter(|&i| first[i] <= j) {
-            let row_i = i * n;
-            let mut s = k[row_i + j];
-            for p in first[i].max(first[j])..j {
-                s -= k[row_i + p] * k[row_j + p];
-            }
-            k[row_i + j] = s * inverse_diagonal[j];
-        }
-    }
-    // L y = b by rows, then L^T x = y by columns of L^T (rows of L): both within the envelope.
-    for i in 0..n {
-        let mut s = x[i];
-        for p in first[i]..i {
-            s -= k[i * n + p] * x[p];
-        }
-        x[i] = s * inverse_diagonal[i];
-    }
-    for i in (0..n).rev() {
-        x[i] *= inverse_diagonal[i];
-        let xi = x[i];
-        for p in first[i]..i {
-            x[p] -= k[i * n + p] * xi;
-        }
-    }
-    true
-}
-
 impl Scratch {
-    fn reset(&mut self, n: usize) {
+    fn reset(&mut self, n: usize, envelope: usize) {
         for v in [&mut self.u, &mut self.lo, &mut self.hi, &mut self.lambda] {
             v.clear();
             v.resize(n, 0.0);
         }
         self.k.clear();
-        self.k.resize(n * n, 0.0);
+        self.k.resize(envelope, 0.0);
     }
 
     /// The rows' rates `u` must end within `[lo, hi]` (per row); finds impulses `lambda` with
     /// `u + K lambda` in range, `lambda >= 0` where held at its low end, `<= 0` at its high
     /// end. False when the block could not be solved (the caller leaves the group alone).
-    fn solve_ranges(&mut self, n: usize) -> bool {
+    fn solve_ranges(&mut self, group: GroupView) -> bool {
+        let n = group.records.len();
+        let Scratch {
+            u,
+            lo,
+            hi,
+            lambda,
+            k,
+            side,
+            ..
+        } = self;
+        if n == 1 {
+            return solve_one_range(u[0], lo[0], hi[0], k[0], &mut lambda[0]);
+        }
+        side.clear();
+        side.extend((0..n).map(|i| {
+            // SAFETY: the group's own records (groups are disjoint).
+            let held = unsafe { group.held.read(group.first + i) };
+            if lo[i] == hi[i] {
+                Side::Both
+            } else if u[i] < lo[i] {
+                Side::Lower
+            } else if u[i] > hi[i] {
+                Side::Upper
+            } else if held == Side::Both {
+                Side::Free
+            } else {
+                held
+            }
+        }));
+        let solved = self.active_set_rounds(group);
+        for (i, &s) in self.side.iter().enumerate() {
+            // SAFETY: as above.
+            unsafe { group.held.write(group.first + i, s) };
+        }
+        solved
+    }
+
+    /// The active-set loop of [`Scratch::solve_ranges`], from the sides set.
+    fn active_set_rounds(&mut self, group: GroupView) -> bool {
         let Scratch {
             u,
             lo,
@@ -348,45 +428,31 @@ impl Scratch {
             side,
             active,
             sub,
+            sub_rows,
             x,
+            inverse_diagonal,
             ..
         } = self;
-        if n == 1 {
-            return solve_one_range(u[0], lo[0], hi[0], k[0], &mut lambda[0]);
-        }
-        side.clear();
-        side.extend((0..n).map(|i| {
-            if lo[i] == hi[i] {
-                Side::Both
-            } else if u[i] < lo[i] {
-                Side::Lower
-            } else if u[i] > hi[i] {
-                Side::Upper
-            } else {
-                Side::Free
-            }
-        }));
+        let n = group.records.len();
         for _ in 0..ACTIVE_SET_ROUNDS {
             active.clear();
             active.extend((0..n).filter(|&i| side[i] != Side::Free));
-            let m = active.len();
-            sub.clear();
-            sub.resize(m * m, 0.0);
+            envelope::principal((group.rows, k), active, (sub_rows, sub));
             x.clear();
-            for (a, &i) in active.iter().enumerate() {
-                for (b, &j) in active.iter().enumerate() {
-                    sub[a * m + b] = k[i * n + j];
-                }
-                x.push(if side[i] == Side::Upper { hi[i] } else { lo[i] } - u[i]);
-            }
-            if !cholesky_solve(sub, m, x) {
+            x.extend(
+                active
+                    .iter()
+                    .map(|&i| if side[i] == Side::Upper { hi[i] } else { lo[i] } - u[i]),
+            );
+            if !envelope::cholesky_solve(sub_rows, sub, x, inverse_diagonal) {
                 return false;
             }
             lambda.iter_mut().for_each(|l| *l = 0.0);
             for (a, &i) in active.iter().enumerate() {
                 lambda[i] = x[a];
             }
-            if !update_sides(n, u, lo, hi, lambda, k, side) {
+            let matrix = (group.rows, group.reach, &k[..]);
+            if !update_sides((u, lo, hi), lambda, matrix, side) {
                 return true;
             }
         }
@@ -414,14 +480,12 @@ fn solve_one_range(u: f64, lo: f64, hi: f64, k: f64, lambda: &mut f64) -> bool {
 
 /// Rows pushing the wrong way let go; rows now out of range are held. True if any changed.
 fn update_sides(
-    n: usize,
-    u: &[f64],
-    lo: &[f64],
-    hi: &[f64],
+    (u, lo, hi): (&[f64], &[f64], &[f64]),
     lambda: &[f64],
-    k: &[f64],
+    (rows, reach, k): (&[Row], &[usize], &[f64]),
     side: &mut [Side],
 ) -> bool {
+    let n = u.len();
     let mut changed = false;
     for i in 0..n {
         let wrong = match side[i] {
@@ -441,7 +505,7 @@ fn update_sides(
         if side[i] != Side::Free {
             continue;
         }
-        let rate = u[i] + (0..n).map(|j| k[i * n + j] * lambda[j]).sum::<f64>();
+        let rate = u[i] + envelope::row_times(rows, k, reach, i, lambda);
         let tolerance = 1e-12 * (1.0 + rate.abs());
         if rate < lo[i] - tolerance {
             side[i] = Side::Lower;
@@ -459,7 +523,7 @@ impl JointBlocks {
     pub fn large_group_constraints(&self) -> Vec<usize> {
         let mut out = Vec::new();
         for g in &self.groups {
-            if g.records.len() > MAX_BLOCK {
+            if !g.direct() {
                 for r in &self.records[g.records.clone()] {
                     out.extend(r.first_constraint..r.first_constraint + r.constraint_count);
                 }
@@ -474,13 +538,14 @@ impl JointBlocks {
     /// crossed; a bound not yet reached may be reached but not passed (speculative).
     pub fn solve_velocities(
         &mut self,
-        poses: &[RigidBody],
-        bodies: &mut [SolverBody],
+        (poses, bodies): (&[RigidBody], &mut [SolverBody]),
+        held: &mut HeldSides,
         inv_h: f64,
         use_bias: bool,
     ) {
         let bodies = Shared::new(bodies);
-        self.for_each_group(|scratch, group| {
+        held.fit(self.records.len());
+        self.for_each_group(&mut held.velocities, |scratch, group| {
             // SAFETY: groups share no moving body; poses are only read.
             unsafe { scratch.solve_group_velocities(group, poses, &bodies, inv_h, use_bias) };
             false
@@ -490,9 +555,14 @@ impl JointBlocks {
     /// Positions: each group's violated rows are moved back onto their bounds, through the
     /// bodies' masses, as an impulse would move them in unit time (velocities untouched).
     /// Returns whether any pose moved.
-    pub fn project_positions(&mut self, poses: &mut [RigidBody], bodies: &[SolverBody]) -> bool {
+    pub fn project_positions(
+        &mut self,
+        (poses, bodies): (&mut [RigidBody], &[SolverBody]),
+        held: &mut HeldSides,
+    ) -> bool {
         let poses = Shared::new(poses);
-        self.for_each_group(|scratch, group| {
+        held.fit(self.records.len());
+        self.for_each_group(&mut held.positions, |scratch, group| {
             // SAFETY: groups share no moving body, and only moving bodies' poses are written.
             unsafe { scratch.project_group(group, &poses, bodies) }
         })
@@ -501,19 +571,31 @@ impl JointBlocks {
     /// Runs `f` on each group solved directly, with a scratch of its own: on the calling thread
     /// for a few groups, else on all threads (groups share no moving body, so the result is
     /// the same). True if `f` returned true for any group.
-    fn for_each_group(&mut self, f: impl Fn(&mut Scratch, GroupView) -> bool + Sync) -> bool {
+    fn for_each_group(
+        &mut self,
+        held: &mut [Side],
+        f: impl Fn(&mut Scratch, GroupView) -> bool + Sync,
+    ) -> bool {
         const PARALLEL_GROUPS: usize = 64;
         let JointBlocks {
             records,
             groups,
             couplings,
+            rows,
+            reach,
             scratch,
         } = self;
+        let held = Shared::new(held);
         let view = |g: &Group| GroupView {
             records: &records[g.records.clone()],
             couplings: &couplings[g.couplings.clone()],
+            rows: &rows[g.records.clone()],
+            reach: &reach[g.records.clone()],
+            envelope: g.envelope,
+            held: &held,
+            first: g.records.start,
         };
-        let direct = |g: &&Group| g.records.len() <= MAX_BLOCK;
+        let direct = |g: &&Group| g.direct();
         if groups.len() < PARALLEL_GROUPS {
             let mut any = false;
             for g in groups.iter().filter(direct) {
@@ -530,11 +612,17 @@ impl JointBlocks {
     }
 }
 
-/// One group's records and the pairs of them that share a body.
+/// One group's records, the pairs of them that share a body, and the layout of its `K`.
 #[derive(Clone, Copy)]
 struct GroupView<'a> {
     records: &'a [DistanceRecord],
     couplings: &'a [(usize, usize)],
+    rows: &'a [Row],
+    reach: &'a [usize],
+    envelope: usize,
+    /// The active sets of the last solves, by record of the world, and the group's first.
+    held: &'a Shared<'a, Side>,
+    first: usize,
 }
 
 impl Scratch {
@@ -554,8 +642,7 @@ impl Scratch {
         if !self.load_geometry(records, |i| &poses[i]) {
             return;
         }
-        let n = records.len();
-        self.reset(n);
+        self.reset(records.len(), group.envelope);
         for (i, (r, g)) in records.iter().zip(&self.geometries).enumerate() {
             // SAFETY: the group's bodies (caller's contract).
             let (b1, b2) = unsafe { (bodies.get(r.body1), bodies.get(r.body2)) };
@@ -586,7 +673,7 @@ impl Scratch {
             (b.inverse_mass, b.inverse_inertia)
         };
         self.fill_matrix(group, &inverse);
-        if self.solve_ranges(n) {
+        if self.solve_ranges(group) {
             // SAFETY: as above.
             unsafe { self.apply(records, bodies) };
         }
@@ -602,26 +689,52 @@ impl Scratch {
         poses: &Shared<RigidBody>,
         bodies: &[SolverBody],
     ) -> bool {
+        let mut moved = false;
+        for round in 0..PROJECTION_ROUNDS {
+            let tolerance = if round == 0 {
+                0.0
+            } else {
+                PROJECTION_TOLERANCE
+            };
+            // SAFETY: the caller's contract.
+            if !unsafe { self.project_group_once(group, poses, bodies, tolerance) } {
+                break;
+            }
+            moved = true;
+        }
+        moved
+    }
+
+    /// One projection of a group whose rows are outside their bounds by more than `tolerance`
+    /// of the bound; true if a pose moved.
+    ///
+    /// # Safety
+    /// As [`Scratch::project_group`].
+    unsafe fn project_group_once(
+        &mut self,
+        group: GroupView,
+        poses: &Shared<RigidBody>,
+        bodies: &[SolverBody],
+        tolerance: f64,
+    ) -> bool {
         let records = group.records;
         // SAFETY: the group's poses are written only by this call (caller's contract).
         if !self.load_geometry(records, |i| unsafe { poses.get(i) }) {
             return false;
         }
-        let n = records.len();
-        let inside = records
-            .iter()
-            .zip(&self.geometries)
-            .all(|(r, g)| g.length >= r.lower && g.length <= r.upper);
+        let inside = records.iter().zip(&self.geometries).all(|(r, g)| {
+            g.length >= r.lower * (1.0 - tolerance) && g.length <= r.upper * (1.0 + tolerance)
+        });
         if inside {
             return false;
         }
-        self.reset(n);
+        self.reset(records.len(), group.envelope);
         for (i, (r, g)) in records.iter().zip(&self.geometries).enumerate() {
             (self.u[i], self.lo[i], self.hi[i]) = (g.length, r.lower, r.upper);
         }
         let inverse = |i: usize| (bodies[i].inverse_mass, bodies[i].inverse_inertia);
         self.fill_matrix(group, &inverse);
-        if !self.solve_ranges(n) {
+        if !self.solve_ranges(group) {
             return false;
         }
         // SAFETY: as above.
@@ -654,15 +767,13 @@ impl Scratch {
         let rows = records.iter().zip(geometries);
         self.jacobians
             .extend(rows.map(|(r, g)| jacobian(r, g, inverse)));
-        let n = records.len();
         let row = |i: usize| (&records[i], &geometries[i], &self.jacobians[i]);
-        for i in 0..n {
-            self.k[i * n + i] = coupling(row(i), row(i));
+        for i in 0..records.len() {
+            self.k[envelope::at(group.rows, i, i)] = coupling(row(i), row(i));
         }
+        // Only the lower triangle is kept: entry (j, i) for i < j.
         for &(i, j) in group.couplings {
-            let v = coupling(row(i), row(j));
-            self.k[i * n + j] = v;
-            self.k[j * n + i] = v;
+            self.k[envelope::at(group.rows, j, i)] = coupling(row(i), row(j));
         }
     }
 
@@ -723,81 +834,5 @@ impl Scratch {
             pose.position += shift;
             pose.orientation = crate::sim::integrate::rotate_by(pose.orientation, turn, 1.0);
         });
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::sim::rng::Rng;
-
-    /// `x` with `a x = b` by Gaussian elimination with partial pivoting (an independent solve).
-    fn eliminate(mut a: Vec<f64>, mut b: Vec<f64>, n: usize) -> Vec<f64> {
-        for c in 0..n {
-            let pivot = (c..n)
-                .max_by(|&i, &j| a[i * n + c].abs().total_cmp(&a[j * n + c].abs()))
-                .unwrap();
-            for k in 0..n {
-                a.swap(c * n + k, pivot * n + k);
-            }
-            b.swap(c, pivot);
-            for r in c + 1..n {
-                let f = a[r * n + c] / a[c * n + c];
-                for k in c..n {
-                    a[r * n + k] -= f * a[c * n + k];
-                }
-                b[r] -= f * b[c];
-            }
-        }
-        let mut x = vec![0.0; n];
-        for r in (0..n).rev() {
-            let s: f64 = (r + 1..n).map(|k| a[r * n + k] * x[k]).sum();
-            x[r] = (b[r] - s) / a[r * n + r];
-        }
-        x
-    }
-
-    /// Symmetric positive definite matrices with the sparsity of a chain, of a branching tree in
-    /// a scrambled order (rows whose envelopes are ragged) and dense ones: the envelope
-    /// factorisation solves them as elimination does.
-    #[test]
-    fn envelope_cholesky_solves_sparse_and_dense_systems() {
-        let mut rng = Rng::new(7);
-        for (case, n) in [(0, 9), (1, 12), (2, 7), (1, MAX_BLOCK)] {
-            // Edges of a graph on the rows; K = D + sum over edges of a coupling (diagonally
-            // dominant, hence positive definite).
-            let edges: Vec<(usize, usize)> = match case {
-                0 => (1..n).map(|i| (i - 1, i)).collect(),
-                1 => (1..n)
-                    .map(|i| ((i * 7) % n, (i * 7 + (i % 3) + 1) % n))
-                    .collect(),
-                _ => (0..n)
-                    .flat_map(|i| (i + 1..n).map(move |j| (i, j)))
-                    .collect(),
-            };
-            let mut k = vec![0.0; n * n];
-            for &(i, j) in edges.iter().filter(|(i, j)| i != j) {
-                let v = rng.range(-1.0, 1.0);
-                k[i * n + j] += v;
-                k[j * n + i] += v;
-            }
-            for i in 0..n {
-                let off: f64 = (0..n).filter(|&j| j != i).map(|j| k[i * n + j].abs()).sum();
-                k[i * n + i] = off + rng.range(0.1, 2.0);
-            }
-            let b: Vec<f64> = (0..n).map(|_| rng.range(-5.0, 5.0)).collect();
-            let expected = eliminate(k.clone(), b.clone(), n);
-            let mut x = b.clone();
-            assert!(cholesky_solve(&mut k.clone(), n, &mut x), "case {case}");
-            for (got, want) in x.iter().zip(&expected) {
-                assert!(
-                    (got - want).abs() < 1e-10 * (1.0 + want.abs()),
-                    "case {case}"
-                );
-            }
-        }
-        // Not positive definite: refused.
-        let mut k = vec![1.0, 2.0, 2.0, 1.0];
-        assert!(!cholesky_solve(&mut k, 2, &mut [1.0, 1.0]));
     }
 }

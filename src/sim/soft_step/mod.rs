@@ -11,6 +11,7 @@
 
 pub mod constraint_graph;
 pub mod contact_solver;
+pub mod envelope;
 pub mod joint_block;
 pub mod joint_solver;
 pub mod manifold;
@@ -33,7 +34,7 @@ use contact_solver::{
     ContactCache, ContactConstraint, ContactParams, ContactPoint, HeldImpulses, Pass,
 };
 use glam::{DQuat, DVec3};
-use joint_block::JointBlocks;
+use joint_block::{HeldSides, JointBlocks};
 use joint_solver::JointRow;
 use manifold::{Manifold, PairStates, body_manifold, ground_manifold, motion_bound};
 use rayon::prelude::*;
@@ -58,6 +59,8 @@ const MANIFOLD_BLOCK: usize = 16_384;
 pub struct SoftStep {
     contacts: ContactCache,
     joint_impulses: Vec<f64>,
+    /// Where each joint group's active-set loop starts.
+    joint_sides: HeldSides,
     /// parry's last manifold of each candidate pair.
     pair_states: PairStates,
     /// Bounding radius of each shape (for the speculative margin of spinning bodies).
@@ -134,6 +137,7 @@ pub struct Scene<'a> {
 pub struct Carried {
     contacts: ContactCache,
     joint_impulses: Vec<f64>,
+    joint_sides: HeldSides,
     pair_states: PairStates,
 }
 
@@ -141,6 +145,7 @@ impl Carried {
     pub fn heap_bytes(&self) -> usize {
         self.contacts.heap_bytes()
             + self.joint_impulses.capacity() * 8
+            + self.joint_sides.heap_bytes()
             + self.pair_states.heap_bytes()
     }
 }
@@ -188,6 +193,7 @@ impl SoftStep {
         Carried {
             contacts: self.contacts.clone(),
             joint_impulses: self.joint_impulses.clone(),
+            joint_sides: self.joint_sides.clone(),
             pair_states: self.pair_states.clone(),
         }
     }
@@ -195,6 +201,7 @@ impl SoftStep {
     pub fn restore(&mut self, carried: &Carried) {
         self.contacts.clone_from(&carried.contacts);
         self.joint_impulses.clone_from(&carried.joint_impulses);
+        self.joint_sides.clone_from(&carried.joint_sides);
         self.pair_states.clone_from(&carried.pair_states);
     }
 
@@ -496,7 +503,11 @@ impl SoftStep {
         self.solve_pass(bodies, substeps, Pass::Soft);
         let w = &mut self.work;
         w.integrate_positions(ctx, bodies, substeps.h);
-        if last && self.blocks.project_positions(bodies, &w.bodies) {
+        if last
+            && self
+                .blocks
+                .project_positions((bodies, &w.bodies), &mut self.joint_sides)
+        {
             w.update_deltas(bodies);
         }
         self.relax(bodies, substeps, Pass::Relax);
@@ -506,8 +517,12 @@ impl SoftStep {
     fn solve_pass(&mut self, bodies: &[RigidBody], substeps: &Substeps, pass: Pass) {
         let (w, inv_h, soft) = (&mut self.work, substeps.inv_h, substeps.joint_softness);
         let biased = pass == Pass::Soft;
-        self.blocks
-            .solve_velocities(bodies, &mut w.bodies, inv_h, biased);
+        self.blocks.solve_velocities(
+            (bodies, &mut w.bodies),
+            &mut self.joint_sides,
+            inv_h,
+            biased,
+        );
         joint_solver::solve(
             &mut w.rows,
             bodies,
