@@ -207,13 +207,49 @@ pub fn chain(n: usize, settings: Settings) -> World {
     World::new(shapes, vec!["box".into()], bodies, constraints, settings)
 }
 
-/// Generated scene by name: `sparse`, `scatter`, `pile` or `chain`.
+/// `rope-N`: one rope of N octahedra (half-size 1) laid out horizontally with gaps of 0.5, the
+/// first fixed, each tip tied to the next one's tail with a rope's bounds (0.5 to 1 of the
+/// gap), high enough to swing down without reaching the ground.
+pub fn rope(n: usize, settings: Settings) -> World {
+    let shape = shape_of(&assets::octahedron(DVec3::splat(1.0)));
+    let extreme = |sign: f64| {
+        let x = |k: usize| sign * shape.rest_vertices[k].x;
+        (0..shape.rest_vertices.len())
+            .max_by(|&a, &b| x(a).total_cmp(&x(b)))
+            .unwrap_or(0)
+    };
+    let (tip, tail) = (extreme(1.0), extreme(-1.0));
+    let pitch = 2.0 * shape.local_box_half_extents.x + 0.5;
+    let height = pitch * n as f64 + 10.0;
+    let bodies: Vec<RigidBody> = (0..n.max(1))
+        .map(|k| {
+            let position = DVec3::new(pitch * k as f64, height, 0.0);
+            RigidBody::on_shape(&shape, 0, 100.0, k == 0, position, DQuat::IDENTITY)
+        })
+        .collect();
+    let shapes = vec![shape];
+    let constraints = (1..bodies.len())
+        .flat_map(|k| {
+            DistanceConstraint::lower_and_upper(&bodies, &shapes, (k - 1, tip), (k, tail), 0.5, 1.0)
+        })
+        .collect();
+    World::new(
+        shapes,
+        vec!["octahedron".into()],
+        bodies,
+        constraints,
+        settings,
+    )
+}
+
+/// Generated scene by name: `sparse`, `scatter`, `pile`, `chain` or `rope`.
 pub fn by_name(name: &str, n: usize, settings: Settings) -> Option<World> {
     match name {
         "sparse" => Some(sparse(n, settings)),
         "scatter" => Some(scatter(n, settings)),
         "pile" => Some(pile(n, settings)),
         "chain" => Some(chain(n, settings)),
+        "rope" => Some(rope(n, settings)),
         _ => None,
     }
 }
