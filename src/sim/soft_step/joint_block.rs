@@ -117,6 +117,9 @@ pub struct Group {
     couplings: Range<usize>,
     /// Entries of `K`'s envelope; above [`MAX_ENVELOPE`] the group is left to Gauss-Seidel.
     envelope: usize,
+    /// The group's place among the groups, and where its `K` lies in [`Setups::k`].
+    index: usize,
+    k_offset: usize,
 }
 
 impl Group {
@@ -137,7 +140,30 @@ pub struct JointBlocks {
     /// the group whose envelope reaches its column (both within the group).
     rows: Vec<Row>,
     reach: Vec<usize>,
+    setups: Setups,
     scratch: Scratch,
+}
+
+/// Each group's system as last set up (the rows' geometry and Jacobians, `K`), with the epoch
+/// of the poses it was set up at (0: never). The passes of a step that start from the same
+/// poses (a substep's relax pass and the next substep's soft pass, the last relax pass and
+/// the final pass: four of nine) take it as it is instead of setting it up again; the same
+/// inputs give the same values, so results do not change.
+#[derive(Debug, Clone, Default)]
+struct Setups {
+    epochs: Vec<u64>,
+    geometries: Vec<Geometry>,
+    jacobians: Vec<Jacobian>,
+    k: Vec<f64>,
+}
+
+/// [`Setups`] shared by the threads solving groups (each touches its own group's entries).
+struct SharedSetups<'a> {
+    epoch: u64,
+    epochs: Shared<'a, u64>,
+    geometries: Shared<'a, Geometry>,
+    jacobians: Shared<'a, Jacobian>,
+    k: Shared<'a, f64>,
 }
 
 /// One group's system: geometry, rates and their ranges, `K`, impulses, the active set.
@@ -204,6 +230,9 @@ impl JointBlocks {
                 start = k;
             }
         }
+        let count = blocks.records.len();
+        blocks.setups.geometries.resize(count, Geometry::default());
+        blocks.setups.jacobians.resize(count, Jacobian::default());
         blocks
     }
 
@@ -220,11 +249,18 @@ impl JointBlocks {
         envelope::reach(&rows, &mut reach);
         self.rows.extend(rows);
         self.reach.extend(reach);
+        let k_offset = self.setups.k.len();
+        if envelope <= MAX_ENVELOPE {
+            self.setups.k.resize(k_offset + envelope, 0.0);
+        }
         self.groups.push(Group {
             records,
             couplings: first..self.couplings.len(),
             envelope,
+            index: self.groups.len(),
+            k_offset,
         });
+        self.setups.epochs.push(0);
     }
 
     /// Whether the grouping still fits these constraints and bodies (same count of records;
@@ -539,13 +575,13 @@ impl JointBlocks {
     pub fn solve_velocities(
         &mut self,
         (poses, bodies): (&[RigidBody], &mut [SolverBody]),
-        held: &mut HeldSides,
+        (held, epoch): (&mut HeldSides, u64),
         inv_h: f64,
         use_bias: bool,
     ) {
         let bodies = Shared::new(bodies);
         held.fit(self.records.len());
-        self.for_each_group(&mut held.velocities, |scratch, group| {
+        self.for_each_group((&mut held.velocities, epoch), |scratch, group| {
             // SAFETY: groups share no moving body; poses are only read.
             unsafe { scratch.solve_group_velocities(group, poses, &bodies, inv_h, use_bias) };
             false
@@ -562,7 +598,9 @@ impl JointBlocks {
     ) -> bool {
         let poses = Shared::new(poses);
         held.fit(self.records.len());
-        self.for_each_group(&mut held.positions, |scratch, group| {
+        // Epoch 0: the projection moves the poses it sets up at, so it neither keeps nor
+        // takes a setup.
+        self.for_each_group((&mut held.positions, 0), |scratch, group| {
             // SAFETY: groups share no moving body, and only moving bodies' poses are written.
             unsafe { scratch.project_group(group, &poses, bodies) }
         })
@@ -573,7 +611,7 @@ impl JointBlocks {
     /// the same). True if `f` returned true for any group.
     fn for_each_group(
         &mut self,
-        held: &mut [Side],
+        (held, epoch): (&mut [Side], u64),
         f: impl Fn(&mut Scratch, GroupView) -> bool + Sync,
     ) -> bool {
         const PARALLEL_GROUPS: usize = 64;
@@ -583,9 +621,17 @@ impl JointBlocks {
             couplings,
             rows,
             reach,
+            setups,
             scratch,
         } = self;
         let held = Shared::new(held);
+        let setups = SharedSetups {
+            epoch,
+            epochs: Shared::new(&mut setups.epochs),
+            geometries: Shared::new(&mut setups.geometries),
+            jacobians: Shared::new(&mut setups.jacobians),
+            k: Shared::new(&mut setups.k),
+        };
         let view = |g: &Group| GroupView {
             records: &records[g.records.clone()],
             couplings: &couplings[g.couplings.clone()],
@@ -594,6 +640,9 @@ impl JointBlocks {
             envelope: g.envelope,
             held: &held,
             first: g.records.start,
+            setups: &setups,
+            index: g.index,
+            k_offset: g.k_offset,
         };
         let direct = |g: &&Group| g.direct();
         if groups.len() < PARALLEL_GROUPS {
@@ -623,6 +672,10 @@ struct GroupView<'a> {
     /// The active sets of the last solves, by record of the world, and the group's first.
     held: &'a Shared<'a, Side>,
     first: usize,
+    /// The groups' last setups, this group's index and the place of its `K` among them.
+    setups: &'a SharedSetups<'a>,
+    index: usize,
+    k_offset: usize,
 }
 
 impl Scratch {
@@ -639,10 +692,15 @@ impl Scratch {
         use_bias: bool,
     ) {
         let records = group.records;
-        if !self.load_geometry(records, |i| &poses[i]) {
+        let inverse = |i: usize| {
+            // SAFETY: the group's bodies (caller's contract).
+            let b = unsafe { bodies.get(i) };
+            (b.inverse_mass, b.inverse_inertia)
+        };
+        // SAFETY: the group's own setup entries (groups are disjoint).
+        if !unsafe { self.set_up(group, |i| &poses[i], &inverse) } {
             return;
         }
-        self.reset(records.len(), group.envelope);
         for (i, (r, g)) in records.iter().zip(&self.geometries).enumerate() {
             // SAFETY: the group's bodies (caller's contract).
             let (b1, b2) = unsafe { (bodies.get(r.body1), bodies.get(r.body2)) };
@@ -667,12 +725,6 @@ impl Scratch {
                 (-allowed(g.length - r.lower), allowed(r.upper - g.length))
             };
         }
-        let inverse = |i: usize| {
-            // SAFETY: as above.
-            let b = unsafe { bodies.get(i) };
-            (b.inverse_mass, b.inverse_inertia)
-        };
-        self.fill_matrix(group, &inverse);
         if self.solve_ranges(group) {
             // SAFETY: as above.
             unsafe { self.apply(records, bodies) };
@@ -739,6 +791,50 @@ impl Scratch {
         }
         // SAFETY: as above.
         unsafe { self.shift(records, poses) };
+        true
+    }
+
+    /// The group's geometry, Jacobians and `K` at the current poses: the kept setup if it was
+    /// made at this epoch, else a new one, kept for the next pass; the rates and ranges
+    /// cleared. False if a record has no geometry.
+    ///
+    /// # Safety
+    /// No other thread touches the group's setup entries meanwhile.
+    unsafe fn set_up<'p>(
+        &mut self,
+        group: GroupView,
+        pose: impl Fn(usize) -> &'p RigidBody,
+        inverse: &impl Fn(usize) -> (f64, DMat3),
+    ) -> bool {
+        let (setups, n) = (group.setups, group.records.len());
+        let records = group.first..group.first + n;
+        let k = group.k_offset..group.k_offset + group.envelope;
+        // SAFETY: the group's own entries (caller's contract).
+        let (epoch, geometries, jacobians, kept_k) = unsafe {
+            (
+                setups.epochs.get_mut(group.index),
+                setups.geometries.slice(records.clone()),
+                setups.jacobians.slice(records),
+                setups.k.slice(k),
+            )
+        };
+        self.reset(n, group.envelope);
+        if setups.epoch != 0 && *epoch == setups.epoch {
+            self.geometries.clear();
+            self.geometries.extend_from_slice(geometries);
+            self.jacobians.clear();
+            self.jacobians.extend_from_slice(jacobians);
+            self.k.copy_from_slice(kept_k);
+            return true;
+        }
+        if !self.load_geometry(group.records, pose) {
+            return false;
+        }
+        self.fill_matrix(group, inverse);
+        geometries.copy_from_slice(&self.geometries);
+        jacobians.copy_from_slice(&self.jacobians);
+        kept_k.copy_from_slice(&self.k);
+        *epoch = setups.epoch;
         true
     }
 

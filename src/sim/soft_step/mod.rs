@@ -100,6 +100,9 @@ struct Workspace {
     in_solver: Vec<bool>,
     /// Awake bodies that nothing touches or holds: integrated on their own, in parallel.
     free: Vec<bool>,
+    /// Bumped whenever the poses or the solver bodies change: the joint groups' setups made
+    /// at the current epoch still hold ([`JointBlocks::solve_velocities`]).
+    pose_epoch: u64,
 }
 
 impl Workspace {
@@ -427,6 +430,8 @@ impl SoftStep {
         self.select_bodies(scene);
         let (bodies, constraints) = (&*scene.bodies, scene.constraints);
         let work = &mut self.work;
+        // New solver bodies (their world inverse inertia at this step's poses).
+        work.pose_epoch += 1;
         let n = bodies.len();
         work.bodies.resize(n + 1, SolverBody::STATIC);
         work.bodies[n] = SolverBody::STATIC; // the ground
@@ -519,7 +524,7 @@ impl SoftStep {
         let biased = pass == Pass::Soft;
         self.blocks.solve_velocities(
             (bodies, &mut w.bodies),
-            &mut self.joint_sides,
+            (&mut self.joint_sides, w.pose_epoch),
             inv_h,
             biased,
         );
@@ -727,6 +732,7 @@ impl Workspace {
     /// Poses from the solved velocities (by the world's rotation integrator), and each body's
     /// displacement since the step began for the contacts' separations.
     fn integrate_positions(&mut self, ctx: &StepContext, bodies: &mut [RigidBody], h: f64) {
+        self.pose_epoch += 1;
         let integrator = ctx.settings.rotation_integrator;
         let start = &self.start;
         for_each_indexed2(&self.moving, bodies, &mut self.bodies, |i, body, sb| {
@@ -742,6 +748,7 @@ impl Workspace {
     }
 
     fn update_deltas(&mut self, bodies: &mut [RigidBody]) {
+        self.pose_epoch += 1;
         let start = &self.start;
         for_each_indexed2(&self.moving, bodies, &mut self.bodies, |i, body, sb| {
             let (p0, q0) = start[i];
