@@ -35,6 +35,8 @@ pub struct RunSummary {
     pub bodies: usize,
     pub constraints: usize,
     pub contacts: usize,
+    /// Box-against-box tests the broad phase made.
+    pub pairs_tested: usize,
     /// Pairs handed to the narrow phase (boxes overlapping).
     pub narrow_phase_queries: usize,
     /// Contacts the separating-axis fallback computed because parry's GJK/EPA failed.
@@ -146,6 +148,7 @@ impl RunSummary {
             bodies: world.bodies.len(),
             constraints: world.constraints.len(),
             contacts: 0,
+            pairs_tested: 0,
             narrow_phase_queries: 0,
             narrow_phase_fallbacks: 0,
             ground_contacts: 0,
@@ -165,6 +168,7 @@ impl RunSummary {
 
     fn add_step(&mut self, world: &tumble::World, stats: tumble::StepStats) {
         self.contacts += stats.contacts;
+        self.pairs_tested += stats.pairs_tested;
         self.narrow_phase_queries += stats.narrow_phase_queries;
         self.narrow_phase_fallbacks += stats.narrow_phase_fallbacks;
         self.ground_contacts += stats.ground_contacts;
@@ -209,6 +213,12 @@ fn print_summary(s: &RunSummary) {
     println!(
         "contacts {} body-body, {} ground; deepest penetration {:.4}",
         s.contacts, s.ground_contacts, s.max_penetration
+    );
+    let per_step = |n: usize| n as f64 / s.steps.max(1) as f64;
+    println!(
+        "per step: {:.1} box tests, {:.1} narrow-phase queries",
+        per_step(s.pairs_tested),
+        per_step(s.narrow_phase_queries)
     );
     if s.constraints > 0 {
         println!(

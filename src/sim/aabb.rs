@@ -42,6 +42,14 @@ impl Aabb {
             max: self.max + DVec3::splat(margin),
         }
     }
+
+    /// This box and the same box moved by `shift` (the space it sweeps when translated).
+    pub fn swept(&self, shift: DVec3) -> Aabb {
+        Aabb {
+            min: self.min.min(self.min + shift),
+            max: self.max.max(self.max + shift),
+        }
+    }
 }
 
 /// A box containing the body's hull at its current pose: the body-space box rotated, then boxed

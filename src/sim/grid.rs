@@ -92,7 +92,19 @@ pub struct Grid {
     crowded: std::collections::HashSet<u64, BuildHasherDefault<CellHasher>>,
     stamp: Vec<u32>,
     epoch: u32,
+    /// Every pair (i < j, sorted) of bodies in the grid whose boxes overlapped when it was made,
+    /// kept from call to call: only the pairs of bodies in `dirty` can have changed since.
+    pairs: Vec<(u32, u32)>,
+    /// Whether `pairs` is up to date for every body outside `dirty`.
+    pairs_valid: bool,
+    /// Bodies whose box or presence changed since `pairs` was made, and a flag per body.
+    dirty: Vec<u32>,
+    is_dirty: Vec<bool>,
 }
+
+/// A walk over every crowded cell costs about as much as refreshing the pairs of this fraction
+/// of the bodies (each looks at its cells' entries; the walk at each pair once).
+const REFRESH_LIMIT: f64 = 0.3;
 
 impl Grid {
     /// A grid whose cells are about the size of a typical body.
@@ -161,6 +173,10 @@ impl Grid {
         self.present.clear();
         self.present.resize(aabbs.len(), false);
         self.stamp.resize(aabbs.len(), 0);
+        self.pairs_valid = false;
+        self.dirty.clear();
+        self.is_dirty.clear();
+        self.is_dirty.resize(aabbs.len(), false);
         for (index, aabb) in aabbs.iter().enumerate() {
             if active[index] {
                 self.insert(index, aabb);
@@ -193,7 +209,16 @@ impl Grid {
         }
     }
 
+    /// Notes that body `index`'s pairs must be found again.
+    fn mark_dirty(&mut self, index: usize) {
+        if !self.is_dirty[index] {
+            self.is_dirty[index] = true;
+            self.dirty.push(index as u32);
+        }
+    }
+
     fn take_out(&mut self, index: usize) {
+        self.mark_dirty(index);
         match self.ranges[index] {
             Some(range) => {
                 let (cells, crowded) = (&mut self.cells, &mut self.crowded);
@@ -213,6 +238,7 @@ impl Grid {
     }
 
     fn insert(&mut self, index: usize, aabb: &Aabb) {
+        self.mark_dirty(index);
         self.present[index] = true;
         match self.range(aabb) {
             Some(range) => {
@@ -232,6 +258,8 @@ impl Grid {
 
     /// Moves body `index` to its new box.
     pub fn update(&mut self, index: usize, aabb: &Aabb) {
+        // Its box changed even where its cells did not.
+        self.mark_dirty(index);
         let new_range = self.range(aabb);
         let old_range = self.ranges[index];
         if new_range.is_some() && new_range == old_range {
@@ -244,31 +272,44 @@ impl Grid {
     }
 
     /// Every pair (i < j) of inserted bodies whose boxes overlap and for which `keep(i, j)`,
-    /// sorted, each once (on all threads). `tested` counts the box comparisons made.
+    /// sorted, each once. `aabbs` are the boxes the grid was last brought to. The pairs are kept
+    /// from call to call and only those of bodies whose boxes changed are found again, unless
+    /// so many changed that walking every crowded cell costs less (on all threads either way).
+    /// `tested` counts the box comparisons made.
     pub fn overlapping_pairs(
-        &self,
+        &mut self,
         aabbs: &[Aabb],
         keep: impl Fn(usize, usize) -> bool + Sync,
         tested: &mut usize,
     ) -> Vec<(u32, u32)> {
-        let everyone = vec![true; aabbs.len()];
-        let (pairs, count) = self.pairs_with_awake(&everyone, aabbs, keep);
-        *tested += count;
-        pairs
+        let limit = REFRESH_LIMIT * self.present.len() as f64;
+        if !self.pairs_valid || self.dirty.len() as f64 > limit {
+            let (pairs, count) = self.walk_crowded_cells(aabbs);
+            self.pairs = pairs;
+            *tested += count;
+        } else {
+            *tested += self.refresh_dirty_pairs(aabbs);
+        }
+        self.pairs_valid = true;
+        for &d in &self.dirty {
+            self.is_dirty[d as usize] = false;
+        }
+        self.dirty.clear();
+        self.pairs
+            .par_iter()
+            .with_min_len(4096)
+            .copied()
+            .filter(|&(i, j)| keep(i as usize, j as usize))
+            .collect()
     }
 
-    /// Every pair (i < j, sorted, each once) of bodies in the grid whose boxes overlap, at least
-    /// one of them `awake`, and for which `keep(i, j)`. Only cells holding two bodies or more
-    /// are visited (kept as a set while bodies are inserted), in parallel. Returns the pairs
-    /// and the number of box tests.
-    pub fn pairs_with_awake(
-        &self,
-        awake: &[bool],
-        aabbs: &[Aabb],
-        keep: impl Fn(usize, usize) -> bool + Sync,
-    ) -> (Vec<(u32, u32)>, usize) {
+    /// Every pair (i < j, sorted, each once) of bodies in the grid whose boxes overlap. Only
+    /// cells holding two bodies or more are visited (kept as a set while bodies are inserted),
+    /// in parallel. Returns the pairs and the number of box tests.
+    fn walk_crowded_cells(&self, aabbs: &[Aabb]) -> Found {
         let crowded: Vec<u64> = self.crowded.iter().copied().collect();
-        let consider = overlap_test(awake, aabbs, keep);
+        let everyone = vec![true; aabbs.len()];
+        let consider = overlap_test(&everyone, aabbs, |_, _| true);
         let in_cells = crowded.par_chunks(64).map(|keys| {
             let mut found = (Vec::new(), 0);
             for &key in keys {
@@ -299,6 +340,65 @@ impl Grid {
             found
         });
         merge_found_parts(in_cells, with_oversized)
+    }
+
+    /// Brings `pairs` up to date: the pairs of the dirty bodies are dropped and found again from
+    /// their cells (in parallel), then merged in. Returns the number of box tests.
+    fn refresh_dirty_pairs(&mut self, aabbs: &[Aabb]) -> usize {
+        let fresh: Vec<Found> = self
+            .dirty
+            .par_chunks(64)
+            .map(|chunk| {
+                let mut found = (Vec::new(), 0);
+                for &d in chunk.iter().filter(|&&d| self.present[d as usize]) {
+                    self.pairs_of(d as usize, aabbs, &mut found);
+                }
+                found
+            })
+            .collect();
+        let tested = fresh.iter().map(|f| f.1).sum();
+        let mut fresh: Vec<(u32, u32)> = fresh.into_iter().flat_map(|f| f.0).collect();
+        fresh.sort_unstable();
+        let is_dirty = &self.is_dirty;
+        self.pairs
+            .retain(|&(i, j)| !is_dirty[i as usize] && !is_dirty[j as usize]);
+        self.pairs = merge_sorted(&self.pairs, &fresh);
+        tested
+    }
+
+    /// The pairs of dirty body `d` (in the grid) whose boxes overlap, each found once: a partner
+    /// in the cells at the first cell the two share, a dirty partner only from the lower body.
+    fn pairs_of(&self, d: usize, aabbs: &[Aabb], (pairs, tested): &mut Found) {
+        let mut consider = |b: usize| {
+            if b != d && (!self.is_dirty[b] || d < b) {
+                *tested += 1;
+                if aabbs[d].overlaps(&aabbs[b]) {
+                    pairs.push((d.min(b) as u32, d.max(b) as u32));
+                }
+            }
+        };
+        match self.ranges[d] {
+            Some(range) => Self::for_cells(range, |key, lowest| {
+                let me = CellEntry::new(d, lowest);
+                for &e in self.cells.get(&key).into_iter().flatten() {
+                    let e = CellEntry(e);
+                    if me.first_meeting(e) {
+                        consider(e.body() as usize);
+                    }
+                }
+            }),
+            None => {
+                // An oversized body may touch anything.
+                for (b, range) in self.ranges.iter().enumerate() {
+                    if range.is_some() {
+                        consider(b);
+                    }
+                }
+            }
+        }
+        for &o in &self.oversized {
+            consider(o as usize);
+        }
     }
 
     /// Bodies (other than `index`) whose boxes overlap `aabbs[index]`, in ascending order.
@@ -346,6 +446,24 @@ impl Grid {
         }
         out.sort_unstable();
     }
+}
+
+/// Two sorted lists without common elements, merged into one sorted list.
+fn merge_sorted<T: Copy + Ord>(a: &[T], b: &[T]) -> Vec<T> {
+    let mut merged = Vec::with_capacity(a.len() + b.len());
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() && j < b.len() {
+        if a[i] < b[j] {
+            merged.push(a[i]);
+            i += 1;
+        } else {
+            merged.push(b[j]);
+            j += 1;
+        }
+    }
+    merged.extend_from_slice(&a[i..]);
+    merged.extend_from_slice(&b[j..]);
+    merged
 }
 
 /// Pairs found by one parallel chunk of a cell walk, and the box tests it made.
@@ -459,24 +577,33 @@ mod tests {
         let first = grid.overlapping_pairs(&boxes, keep, &mut tested);
         assert!(first.len() > 1000, "{}", first.len());
         assert_eq!(first, expected(&boxes, &active));
-        // A third of the bodies moved, some left out and some brought back.
-        let mut moved = vec![false; n];
-        for (k, b) in boxes.iter_mut().enumerate().filter(|(k, _)| k % 3 == 1) {
-            let shift = DVec3::new(next(), next(), next()) * 6.0 - DVec3::splat(3.0);
-            *b = Aabb {
-                min: b.min + shift,
-                max: b.max + shift,
-            };
-            moved[k] = true;
+        // Rounds of moves: a third of the bodies (the crowded cells walked again), then a few
+        // (their pairs refreshed), some left out and some brought back, and single bodies moved
+        // by `update` between syncs, as contacts move them.
+        for (round, every) in [3, 40, 9, 200].into_iter().enumerate() {
+            let mut moved = vec![false; n];
+            for k in (round % every..n).step_by(every) {
+                let shift = DVec3::new(next(), next(), next()) * 6.0 - DVec3::splat(3.0);
+                boxes[k] = Aabb {
+                    min: boxes[k].min + shift,
+                    max: boxes[k].max + shift,
+                };
+                moved[k] = true;
+            }
+            active
+                .iter_mut()
+                .enumerate()
+                .for_each(|(k, a)| *a = k % 17 != 3 + round);
+            grid.sync(&boxes, &active, &moved);
+            for k in [11, 500, 89 * 3, 1199].into_iter().filter(|&k| active[k]) {
+                boxes[k].max += DVec3::splat(2.0 * next());
+                grid.update(k, &boxes[k]);
+            }
+            assert_eq!(
+                grid.overlapping_pairs(&boxes, keep, &mut tested),
+                expected(&boxes, &active),
+                "round {round}"
+            );
         }
-        active
-            .iter_mut()
-            .enumerate()
-            .for_each(|(k, a)| *a = k % 17 != 5);
-        grid.sync(&boxes, &active, &moved);
-        assert_eq!(
-            grid.overlapping_pairs(&boxes, keep, &mut tested),
-            expected(&boxes, &active)
-        );
     }
 }

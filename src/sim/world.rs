@@ -256,7 +256,7 @@ impl World {
         let mut broad = self.broad_phase.clone();
         broad.update_boxes(bodies, shapes);
         let keep = |i: usize, j: usize| may_collide(&bodies[i], &bodies[j]);
-        let mut queue = broad.candidate_pairs(bodies, shapes, keep, &mut 0);
+        let mut queue = broad.candidate_pairs(bodies, shapes, 0.0, keep, &mut 0);
         let patches = self.settings.contact_patches;
         let mut out = Vec::new();
         while let Some(((i, j), _)) = queue.pop() {

@@ -99,6 +99,7 @@ impl ContactStage {
             broad.candidate_pairs(
                 bodies,
                 shapes,
+                ctx.dt,
                 |i, j| flags_may_collide(flags[i], flags[j]),
                 &mut stats.pairs_tested,
             )
