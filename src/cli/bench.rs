@@ -16,18 +16,18 @@ use tumble::bench::soak::SoakResult;
 pub struct ScaleArgs {
     /// Scene families to run: sparse (the coursework's comparison: more bodies in the same
     /// square), pile, chain, scatter (constant density: the area grows with N).
-    #[arg(long, value_delimiter = ',', default_values_t = ["sparse".to_string(), "pile".to_string(), "chain".to_string(), "scatter".to_string()])]
+    #[arg(long, num_args = 1.., value_delimiter = ',', default_values_t = ["sparse".to_string(), "pile".to_string(), "chain".to_string(), "scatter".to_string()])]
     pub scenes: Vec<String>,
     /// Body counts of sparse, pile and chain.
-    #[arg(long, value_delimiter = ',', default_values_t = [100usize, 1000, 10000])]
+    #[arg(long, num_args = 1.., value_delimiter = ',', default_values_t = [100usize, 1000, 10000])]
     pub sizes: Vec<usize>,
     /// Body counts of scatter.
-    #[arg(long, value_delimiter = ',', default_values_t = [1000usize, 10000, 100000])]
+    #[arg(long, num_args = 1.., value_delimiter = ',', default_values_t = [1000usize, 10000, 100000])]
     pub scatter_sizes: Vec<usize>,
     /// Variants to run (default: all): coursework, tumble_1_thread, tumble_all_cores,
     /// accurate_1_thread, accurate_all_cores, rapier, rapier_accurate (the last two need
     /// `--features compare-rapier`).
-    #[arg(long, value_delimiter = ',', value_parser = parse_variant)]
+    #[arg(long, num_args = 1.., value_delimiter = ',', value_parser = parse_variant)]
     pub variants: Vec<Variant>,
     /// Also run sparse-100000.
     #[arg(long)]
@@ -55,13 +55,13 @@ pub struct ScaleArgs {
 #[derive(Debug, Args)]
 pub struct AccuracyArgs {
     /// Scenarios to run (default: all).
-    #[arg(long, value_enum, value_delimiter = ',')]
+    #[arg(long, value_enum, num_args = 1.., value_delimiter = ',')]
     pub scenarios: Vec<Scenario>,
     /// Time steps to sweep.
-    #[arg(long, value_delimiter = ',', default_values_t = [0.04, 0.02, 0.01, 0.005, 0.0025])]
+    #[arg(long, num_args = 1.., value_delimiter = ',', default_values_t = [0.04, 0.02, 0.01, 0.005, 0.0025])]
     pub dts: Vec<f64>,
     /// Setting combinations to run (default: all; see the table's rows for their names).
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, num_args = 1.., value_delimiter = ',')]
     pub combinations: Vec<String>,
     /// Reduced sweep for smoke tests (two time steps, fewer combinations).
     #[arg(long)]
