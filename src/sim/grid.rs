@@ -4,6 +4,7 @@
 use super::aabb::Aabb;
 use glam::DVec3;
 use rayon::prelude::*;
+use smallvec::SmallVec;
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
@@ -33,7 +34,9 @@ impl Hasher for CellHasher {
 
 /// A cell's entries: each body's index in the low bits and, in the top three, whether the cell
 /// is the lowest of the body's range along x, y and z ([`CellEntry`]).
-type CellMap = HashMap<u64, Vec<u32>, BuildHasherDefault<CellHasher>>;
+/// Up to four entries are held in the map itself: most cells hold one body, and a `Vec` each
+/// (its header and a heap block) made the grid the largest part of scatter-100000's peak heap.
+type CellMap = HashMap<u64, SmallVec<[u32; 4]>, BuildHasherDefault<CellHasher>>;
 
 /// One body in one cell. Two bodies sharing a cell meet there first when, along each axis, the
 /// cell is the lowest of one of their ranges (the first shared cell is the maximum of the two
@@ -67,14 +70,18 @@ impl CellEntry {
 /// against every other body instead of filling thousands of cells (floors, walls).
 const MAX_CELLS_PER_AXIS: i64 = 8;
 
-/// The cell holding coordinate `v` (in cells): its floor, clamped to +-2^52 first so it fits
-/// an i64 and `hi - lo` cannot overflow (a body at 1e300). By hand: `f64::floor` is a libm
-/// call on baseline x86-64, and this runs for every body that moves.
-fn cell_of(v: f64) -> i64 {
-    const LIMIT: f64 = (1u64 << 52) as f64;
+/// A cell's coordinates along the three axes.
+type Cell = [i32; 3];
+
+/// The cell holding coordinate `v` (in cells): its floor, clamped to +-2^30 first so it fits
+/// an i32 (a body at 1e300 lands in the last cell, with every other body that far out). By
+/// hand: `f64::floor` is a libm call on baseline x86-64, and this runs for every body that
+/// moves. Half the size of i64 corners: `ranges` was 5.6 MB at 100,000 bodies.
+fn cell_of(v: f64) -> i32 {
+    const LIMIT: f64 = (1u64 << 30) as f64;
     let v = v.clamp(-LIMIT, LIMIT);
-    let truncated = v as i64;
-    truncated - ((truncated as f64) > v) as i64
+    let truncated = v as i32;
+    truncated - ((truncated as f64) > v) as i32
 }
 
 /// Uniform hash grid of body boxes.
@@ -84,12 +91,10 @@ pub struct Grid {
     cells: CellMap,
     /// Cell range (min, max corner) each body was inserted with; None for oversized bodies
     /// and bodies not in the grid.
-    ranges: Vec<Option<([i64; 3], [i64; 3])>>,
+    ranges: Vec<Option<(Cell, Cell)>>,
     oversized: Vec<u32>,
     /// Whether each body is in the grid (in cells or oversized).
     present: Vec<bool>,
-    /// Keys of the cells holding two bodies or more.
-    crowded: std::collections::HashSet<u64, BuildHasherDefault<CellHasher>>,
     stamp: Vec<u32>,
     epoch: u32,
     /// Every pair (i < j, sorted) of bodies in the grid whose boxes overlapped when it was made,
@@ -124,29 +129,29 @@ impl Grid {
     }
 
     /// The cells a box spans (min and max corner), or None for an oversized box. The corners are
-    /// clamped to +-2^52 cells, so a body at 1e300 neither overflows `hi - lo` nor loops over
-    /// billions of cells.
-    fn range(&self, aabb: &Aabb) -> Option<([i64; 3], [i64; 3])> {
+    /// clamped to +-2^30 cells, so a body at 1e300 does not loop over billions of cells.
+    fn range(&self, aabb: &Aabb) -> Option<(Cell, Cell)> {
         let inv = 1.0 / self.cell_size;
         let (lo, hi) = (aabb.min * inv, aabb.max * inv);
         if !lo.is_finite() || !hi.is_finite() {
             return None;
         }
         let (lo, hi) = (lo.to_array().map(cell_of), hi.to_array().map(cell_of));
-        if (0..3).any(|k| hi[k] - lo[k] >= MAX_CELLS_PER_AXIS) {
+        if (0..3).any(|k| hi[k] as i64 - lo[k] as i64 >= MAX_CELLS_PER_AXIS) {
             return None;
         }
         Some((lo, hi))
     }
 
-    fn key(x: i64, y: i64, z: i64) -> u64 {
+    fn key(x: i32, y: i32, z: i32) -> u64 {
         // 21 bits per axis: wraps for huge coordinates, which only costs extra box tests.
-        ((x as u64 & 0x1F_FFFF) << 42) | ((y as u64 & 0x1F_FFFF) << 21) | (z as u64 & 0x1F_FFFF)
+        let bits = |c: i32| c as u32 as u64 & 0x1F_FFFF;
+        (bits(x) << 42) | (bits(y) << 21) | bits(z)
     }
 
     /// Calls `f` with each cell of `range` (its key) and whether it is the range's lowest along
     /// x, y and z.
-    fn for_cells(range: ([i64; 3], [i64; 3]), mut f: impl FnMut(u64, [bool; 3])) {
+    fn for_cells(range: (Cell, Cell), mut f: impl FnMut(u64, [bool; 3])) {
         let (lo, hi) = range;
         for x in lo[0]..=hi[0] {
             for y in lo[1]..=hi[1] {
@@ -166,7 +171,6 @@ impl Grid {
             list.clear();
             keep
         });
-        self.crowded.clear();
         self.oversized.clear();
         self.ranges.clear();
         self.ranges.resize(aabbs.len(), None);
@@ -221,13 +225,10 @@ impl Grid {
         self.mark_dirty(index);
         match self.ranges[index] {
             Some(range) => {
-                let (cells, crowded) = (&mut self.cells, &mut self.crowded);
+                let cells = &mut self.cells;
                 Self::for_cells(range, |key, _| {
                     if let Some(list) = cells.get_mut(&key) {
-                        list.retain(|&e| CellEntry(e).body() as usize != index);
-                        if list.len() < 2 {
-                            crowded.remove(&key);
-                        }
+                        list.retain(|e| CellEntry(*e).body() as usize != index);
                     }
                 });
             }
@@ -243,13 +244,10 @@ impl Grid {
         match self.range(aabb) {
             Some(range) => {
                 self.ranges[index] = Some(range);
-                let (cells, crowded) = (&mut self.cells, &mut self.crowded);
+                let cells = &mut self.cells;
                 Self::for_cells(range, |key, lowest| {
                     let list = cells.entry(key).or_default();
                     list.push(CellEntry::new(index, lowest).0);
-                    if list.len() == 2 {
-                        crowded.insert(key);
-                    }
                 });
             }
             None => self.oversized.push(index as u32),
@@ -304,16 +302,18 @@ impl Grid {
     }
 
     /// Every pair (i < j, sorted, each once) of bodies in the grid whose boxes overlap. Only
-    /// cells holding two bodies or more are visited (kept as a set while bodies are inserted),
-    /// in parallel. Returns the pairs and the number of box tests.
+    /// cells holding two bodies or more are visited, in parallel. Returns the pairs and the
+    /// number of box tests.
     fn walk_crowded_cells(&self, aabbs: &[Aabb]) -> Found {
-        let crowded: Vec<u64> = self.crowded.iter().copied().collect();
+        let crowded: Vec<&[u32]> = (self.cells.values())
+            .filter(|list| list.len() > 1)
+            .map(|list| list.as_slice())
+            .collect();
         let everyone = vec![true; aabbs.len()];
         let consider = overlap_test(&everyone, aabbs, |_, _| true);
-        let in_cells = crowded.par_chunks(64).map(|keys| {
+        let in_cells = crowded.par_chunks(64).map(|lists| {
             let mut found = (Vec::new(), 0);
-            for &key in keys {
-                let list = &self.cells[&key];
+            for list in lists {
                 for (k, &a) in list.iter().enumerate() {
                     let a = CellEntry(a);
                     for &b in &list[k + 1..] {

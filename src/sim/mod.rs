@@ -9,7 +9,6 @@ pub mod aabb;
 pub mod body;
 pub mod broad_phase;
 pub mod buffer;
-pub mod cell_list;
 pub mod constraint;
 pub mod coursework;
 pub mod grab;

@@ -326,7 +326,7 @@ impl SoftStep {
                 .map(|b| motion_bound(b, self.radii[b.shape], gravity, dt) + SPECULATIVE_DISTANCE),
         );
         let radii = &self.radii;
-        let pairs = candidate_pairs(broad, (bodies, shapes), (radii, margins), stats);
+        let pairs = candidate_pairs(broad, (bodies, shapes), (radii, margins, dt), stats);
         let seeds = sleep::disturbed(bodies, scene.constraints, &pairs);
         let touching = self.contacts.pairs();
         if !sleep::wake(bodies, scene.constraints, touching, seeds.into_iter()) {
@@ -337,7 +337,7 @@ impl SoftStep {
         // in the next step if they moved): waking them in a loop until nothing more woke ran
         // the broad phase once per ring of a resting carpet, five times a step at
         // scatter-100000, and kept all of it awake.
-        candidate_pairs(broad, (bodies, shapes), (radii, margins), stats)
+        candidate_pairs(broad, (bodies, shapes), (radii, margins, dt), stats)
     }
 
     /// Manifolds of the candidate pairs and of the awake bodies near the ground, ground first,
@@ -641,7 +641,7 @@ fn at_rest(scene: &Scene) -> bool {
 fn candidate_pairs(
     broad: &mut BroadPhase,
     (bodies, shapes): (&[RigidBody], &[Shape]),
-    (radii, margins): (&[f64], &[f64]),
+    (radii, margins, dt): (&[f64], &[f64], f64),
     stats: &mut StepStats,
 ) -> Vec<(u32, u32)> {
     let keep = |i: usize, j: usize| {
@@ -653,7 +653,7 @@ fn candidate_pairs(
                 (b, radii[b.shape] + margins[j]),
             )
     };
-    broad.speculative_pairs(bodies, shapes, margins, keep, &mut stats.pairs_tested)
+    broad.speculative_pairs(bodies, shapes, (margins, dt), keep, &mut stats.pairs_tested)
 }
 
 /// Whether the bounding spheres of two bodies, each grown by its reach, overlap. The boxes of
