@@ -107,8 +107,11 @@ pub struct Grid {
     is_dirty: Vec<bool>,
 }
 
-/// A walk over every crowded cell costs about as much as refreshing the pairs of this fraction
-/// of the bodies (each looks at its cells' entries; the walk at each pair once).
+/// With more than this fraction of the bodies' proxies changed, every crowded cell is walked
+/// instead of refreshing the pairs of each changed body (a refresh looks at all entries of the
+/// body's cells, the walk at each pair of a cell once). Measured (`bench scale`, broad phase on
+/// one thread): always walking cost 2-4x more than refreshing on sparse-1000, pile-1000 and
+/// scatter-10000 with either solver; 0.3 and 1.0 were alike there (few steps pass 0.3).
 const REFRESH_LIMIT: f64 = 0.3;
 
 impl Grid {
