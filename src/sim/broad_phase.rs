@@ -56,9 +56,16 @@ impl BroadPhase {
         );
     }
 
-    /// Body boxes as of the last update or move.
+    /// Body boxes as of the last update or move (the coursework solver's; the soft step keeps
+    /// only [`BroadPhase::speculative_boxes`]).
     pub fn boxes(&self) -> &[Aabb] {
         &self.aabbs
+    }
+
+    /// Each body's box grown by how far it can travel in the step, as of the soft step's last
+    /// broad phase (sleeping bodies': as of the step they last moved).
+    pub fn speculative_boxes(&self) -> &[Aabb] {
+        &self.speculative
     }
 
     pub fn overlap(&self, i: usize, j: usize) -> bool {
@@ -119,28 +126,29 @@ impl BroadPhase {
         tested: &mut usize,
     ) -> Vec<(u32, u32)> {
         let n = bodies.len();
-        if self.aabbs.len() != n || self.proxies.len() != n || self.placed.len() != n {
-            for boxes in [&mut self.aabbs, &mut self.speculative, &mut self.proxies] {
+        if self.speculative.len() != n || self.proxies.len() != n || self.placed.len() != n {
+            for boxes in [&mut self.speculative, &mut self.proxies] {
                 boxes.clear();
                 boxes.resize(n, Aabb::EMPTY);
             }
             self.placed.clear();
             self.placed.resize(n, None);
         }
-        self.speculative.resize(n, Aabb::EMPTY);
+        // The coursework loop's boxes are not kept meanwhile (4.8 MB at 100,000 bodies); it
+        // computes them again when it runs.
+        self.aabbs = Vec::new();
         self.lookahead = PROXY_LOOKAHEAD_STEPS * dt;
         let lookahead = self.lookahead;
         let mut moved = vec![false; n];
-        let boxes = (&mut self.aabbs, &mut self.speculative, &mut self.proxies);
+        let boxes = (&mut self.speculative, &mut self.proxies);
         (boxes, &mut self.placed, &mut moved)
             .into_par_iter()
             .zip((bodies, margins))
             .with_min_len(256)
-            .for_each(|(((aabb, speculative, proxy), placed, moved), (b, &m))| {
+            .for_each(|(((speculative, proxy), placed, moved), (b, &m))| {
                 let pose = Some((b.position, b.orientation));
                 if b.is_awake() || *placed != pose {
-                    *aabb = body_aabb(b, &shapes[b.shape]);
-                    *speculative = aabb.fattened(m);
+                    *speculative = body_aabb(b, &shapes[b.shape]).fattened(m);
                     *placed = pose;
                 }
                 if !proxy.contains(speculative) {

@@ -356,12 +356,13 @@ impl SoftStep {
         let margins = &self.work.margins;
         let manifolds = &mut self.work.manifolds;
         manifolds.clear();
-        let boxes = broad.boxes();
+        // A body's box grown by its margin reaches the ground plane.
+        let grown = broad.speculative_boxes();
         for range in buffer::blocks(bodies.len(), MANIFOLD_BLOCK) {
             buffer::reserve_exact(manifolds, range.len());
             manifolds.par_extend(range.into_par_iter().with_min_len(256).filter_map(|j| {
                 let b = &bodies[j];
-                let reaches = b.is_awake() && boxes[j].min.y - margins[j] <= 0.0;
+                let reaches = b.is_awake() && grown[j].min.y <= 0.0;
                 reaches.then(|| ground_manifold(j, b, &shapes[b.shape], margins[j]))?
             }));
         }
