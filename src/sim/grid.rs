@@ -312,8 +312,7 @@ impl Grid {
             .filter(|list| list.len() > 1)
             .map(|list| list.as_slice())
             .collect();
-        let everyone = vec![true; aabbs.len()];
-        let consider = overlap_test(&everyone, aabbs, |_, _| true);
+        let consider = |a: usize, b: usize, found: &mut Found| test_pair(aabbs, a, b, found);
         let in_cells = crowded.par_chunks(64).map(|lists| {
             let mut found = (Vec::new(), 0);
             for list in lists {
@@ -371,36 +370,43 @@ impl Grid {
 
     /// The pairs of dirty body `d` (in the grid) whose boxes overlap, each found once: a partner
     /// in the cells at the first cell the two share, a dirty partner only from the lower body.
-    fn pairs_of(&self, d: usize, aabbs: &[Aabb], (pairs, tested): &mut Found) {
-        let mut consider = |b: usize| {
-            if b != d && (!self.is_dirty[b] || d < b) {
-                *tested += 1;
-                if aabbs[d].overlaps(&aabbs[b]) {
-                    pairs.push((d.min(b) as u32, d.max(b) as u32));
-                }
+    fn pairs_of(&self, d: usize, aabbs: &[Aabb], found: &mut Found) {
+        self.for_each_candidate(d, self.ranges[d], |b, first_meeting| {
+            if first_meeting && b != d && (!self.is_dirty[b] || d < b) {
+                test_pair(aabbs, d, b, found);
             }
-        };
-        match self.ranges[d] {
+        });
+    }
+
+    /// Calls `f(b, first_meeting)` for every body `b` in the grid that may overlap body `index`
+    /// spanning `range` (None: oversized, so everyone), and whether this is the first cell the
+    /// two share (always, for an oversized side): those who want each pair once keep only that.
+    /// `index` itself may come up.
+    fn for_each_candidate(
+        &self,
+        index: usize,
+        range: Option<(Cell, Cell)>,
+        mut f: impl FnMut(usize, bool),
+    ) {
+        match range {
             Some(range) => Self::for_cells(range, |key, lowest| {
-                let me = CellEntry::new(d, lowest);
+                let me = CellEntry::new(index, lowest);
                 for &e in self.cells.get(&key).into_iter().flatten() {
                     let e = CellEntry(e);
-                    if me.first_meeting(e) {
-                        consider(e.body() as usize);
-                    }
+                    f(e.body() as usize, me.first_meeting(e));
                 }
             }),
             None => {
                 // An oversized body may touch anything.
                 for (b, range) in self.ranges.iter().enumerate() {
                     if range.is_some() {
-                        consider(b);
+                        f(b, true);
                     }
                 }
             }
         }
         for &o in &self.oversized {
-            consider(o as usize);
+            f(o as usize, true);
         }
     }
 
@@ -414,39 +420,16 @@ impl Grid {
         }
         let aabb = aabbs[index];
         let range = self.ranges[index].or_else(|| self.range(&aabb));
-        let (stamp, epoch) = (&mut self.stamp, self.epoch);
-        let mut visit = |b: u32, out: &mut Vec<u32>| {
-            let bi = b as usize;
-            if bi != index && stamp[bi] != epoch {
-                stamp[bi] = epoch;
-                if aabbs[bi].overlaps(&aabb) {
-                    out.push(b);
+        let (mut stamp, epoch) = (std::mem::take(&mut self.stamp), self.epoch);
+        self.for_each_candidate(index, range, |b, _| {
+            if b != index && stamp[b] != epoch {
+                stamp[b] = epoch;
+                if aabbs[b].overlaps(&aabb) {
+                    out.push(b as u32);
                 }
             }
-        };
-        match range {
-            Some(range) => {
-                let cells = &self.cells;
-                Self::for_cells(range, |key, _| {
-                    if let Some(list) = cells.get(&key) {
-                        for &b in list {
-                            visit(CellEntry(b).body(), out);
-                        }
-                    }
-                });
-            }
-            None => {
-                // An oversized body may touch anything.
-                for (b, range) in self.ranges.iter().enumerate() {
-                    if range.is_some() {
-                        visit(b as u32, out);
-                    }
-                }
-            }
-        }
-        for &b in &self.oversized {
-            visit(b, out);
-        }
+        });
+        self.stamp = stamp;
         out.sort_unstable();
     }
 }
@@ -470,28 +453,21 @@ fn merge_sorted<T: Copy + Ord>(a: &[T], b: &[T]) -> Vec<T> {
 }
 
 /// Pairs found by one parallel chunk of a cell walk, and the box tests it made.
-pub(super) type Found = (Vec<(u32, u32)>, usize);
+type Found = (Vec<(u32, u32)>, usize);
 
-/// The test a cell walk applies to two bodies sharing a cell: counted, and kept (as i < j) when
-/// their boxes overlap, one of them is awake and `keep(i, j)`.
-pub(super) fn overlap_test<'a>(
-    awake: &'a [bool],
-    boxes: &'a [Aabb],
-    keep: impl Fn(usize, usize) -> bool + Sync + 'a,
-) -> impl Fn(usize, usize, &mut Found) + Sync + 'a {
-    move |a, b, (pairs, tested)| {
-        *tested += 1;
-        let (i, j) = (a.min(b), a.max(b));
-        if (awake[i] || awake[j]) && boxes[i].overlaps(&boxes[j]) && keep(i, j) {
-            pairs.push((i as u32, j as u32));
-        }
+/// The test applied to two bodies that may overlap: counted, and kept (as i < j) when their
+/// boxes overlap.
+fn test_pair(boxes: &[Aabb], a: usize, b: usize, (pairs, tested): &mut Found) {
+    *tested += 1;
+    if boxes[a].overlaps(&boxes[b]) {
+        pairs.push((a.min(b) as u32, a.max(b) as u32));
     }
 }
 
 /// [`merge_found`] over the finds of the cells and of the oversized bodies. Collected one after
 /// the other: a chain forks even when one side is empty, and a fork from outside the thread
 /// pool wakes a worker and waits for it (tens of microseconds, more than a small scene's step).
-pub(super) fn merge_found_parts(
+fn merge_found_parts(
     in_cells: impl ParallelIterator<Item = Found>,
     with_oversized: impl ParallelIterator<Item = Found>,
 ) -> Found {
@@ -501,7 +477,7 @@ pub(super) fn merge_found_parts(
 }
 
 /// The chunks' pairs, sorted and each once, and their box tests summed.
-pub(super) fn merge_found(chunks: Vec<Found>) -> Found {
+fn merge_found(chunks: Vec<Found>) -> Found {
     let tested = chunks.iter().map(|c| c.1).sum();
     let mut pairs: Vec<(u32, u32)> = chunks.into_iter().flat_map(|c| c.0).collect();
     pairs.sort_unstable();
