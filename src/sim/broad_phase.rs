@@ -87,7 +87,6 @@ impl BroadPhase {
         keep: impl Fn(usize, usize) -> bool + Sync,
         tested: &mut usize,
     ) -> PairQueue {
-        let active: Vec<bool> = bodies.iter().map(|b| !b.quarantined).collect();
         self.lookahead = PROXY_LOOKAHEAD_STEPS * dt;
         // The soft step computes every box again after this step has moved bodies under it.
         self.placed.clear();
@@ -106,8 +105,14 @@ impl BroadPhase {
                 *proxy = proxy_of(&aabbs[i], body, shapes, lookahead);
                 *moved = true;
             });
-        self.grid.sync(&self.proxies, &active, &moved);
-        PairQueue::new(self.grid.overlapping_pairs(&self.proxies, keep, tested))
+        let pairs = grid_pairs(
+            &mut self.grid,
+            &self.proxies,
+            bodies,
+            &moved,
+            (keep, tested),
+        );
+        PairQueue::new(pairs)
     }
 
     /// For the soft-step solver: each awake body's box grown by `margins[i]` (how far it can
@@ -158,13 +163,17 @@ impl BroadPhase {
             });
         self.is_awake.clear();
         self.is_awake.extend(bodies.iter().map(|b| b.is_awake()));
-        let active: Vec<bool> = bodies.iter().map(|b| !b.quarantined).collect();
-        self.grid.sync(&self.proxies, &active, &moved);
         let (awake, speculative) = (&self.is_awake, &self.speculative);
         let wanted = |i: usize, j: usize| {
             (awake[i] || awake[j]) && speculative[i].overlaps(&speculative[j]) && keep(i, j)
         };
-        self.grid.overlapping_pairs(&self.proxies, wanted, tested)
+        grid_pairs(
+            &mut self.grid,
+            &self.proxies,
+            bodies,
+            &moved,
+            (wanted, tested),
+        )
     }
 
     /// Body `index` was moved while the loop stood at some pair: its box is refreshed, and if it
@@ -193,6 +202,20 @@ impl BroadPhase {
     pub fn refresh(&mut self, index: usize, body: &RigidBody, shapes: &[Shape]) {
         self.aabbs[index] = body_aabb(body, &shapes[body.shape]);
     }
+}
+
+/// The grid brought to the `proxies` (the `moved` ones changed, quarantined bodies left out),
+/// and its pairs of overlapping proxies for which `keep(i, j)`; `tested` counts box tests.
+fn grid_pairs(
+    grid: &mut Grid,
+    proxies: &[Aabb],
+    bodies: &[RigidBody],
+    moved: &[bool],
+    (keep, tested): (impl Fn(usize, usize) -> bool + Sync, &mut usize),
+) -> Vec<(u32, u32)> {
+    let active: Vec<bool> = bodies.iter().map(|b| !b.quarantined).collect();
+    grid.sync(proxies, &active, moved);
+    grid.overlapping_pairs(proxies, keep, tested)
 }
 
 /// Steps of travel a proxy reaches ahead of its body.
