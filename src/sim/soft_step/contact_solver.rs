@@ -226,7 +226,7 @@ impl ContactCache {
         // Pairs are unique within each part, so any sort gives the one order; a stable sort
         // merges runs: the manifolds come as two sorted runs (pairs, ground last), and the
         // two parts are two more (pile-10000 spent 4 ms a step sorting with `sort_unstable`).
-        self.entries[sleepers..].sort_by_key(|(pair, _)| *pair);
+        self.entries[sleepers..].par_sort_by_key(|(pair, _)| *pair);
         let (old, fresh) = self.entries.split_at(sleepers);
         let superseded: Vec<bool> = old
             .iter()
@@ -237,7 +237,7 @@ impl ContactCache {
             index += 1;
             !superseded.get(index - 1).copied().unwrap_or(false)
         });
-        self.entries.sort_by_key(|(pair, _)| *pair);
+        self.entries.par_sort_by_key(|(pair, _)| *pair);
     }
 
     pub fn heap_bytes(&self) -> usize {
@@ -531,20 +531,25 @@ impl HeldImpulses {
 
 /// Runs `f` on every contact constraint with its points and its two solver bodies, colour by
 /// colour (see [`Colours::for_each`]): the one place the colouring's disjointness is relied on.
-fn for_each_contact(
+/// With `selected` (increasing constraint indices), on those constraints only.
+pub fn for_each_contact(
     colours: &Colours,
-    constraints: &mut [ContactConstraint],
+    (constraints, selected): (&mut [ContactConstraint], Option<&[u32]>),
     points: &mut [ContactPoint],
     bodies: &mut [SolverBody],
     f: impl Fn(&mut ContactConstraint, &mut [ContactPoint], &mut SolverBody, &mut SolverBody) + Sync,
 ) {
     let (bodies, points) = (Shared::new(bodies), Shared::new(points));
-    colours.for_each(constraints, |c| {
+    let each = |c: &mut ContactConstraint| {
         // SAFETY: within a colour a constraint's points and moving bodies are its own.
         let contact_points = unsafe { points.slice(c.first..c.first + c.count) };
         let pair = (c.body1, c.body2);
         unsafe { with_pair(&bodies, pair, |b1, b2| f(c, contact_points, b1, b2)) }
-    });
+    };
+    match selected {
+        Some(selected) => colours.for_each_selected(constraints, selected, each),
+        None => colours.for_each(constraints, each),
+    }
 }
 
 /// Applies the accumulated impulses (warm starting), once per substep.
@@ -554,16 +559,22 @@ pub fn warm_start(
     points: &mut [ContactPoint],
     bodies: &mut [SolverBody],
 ) {
-    for_each_contact(colours, constraints, points, bodies, |c, points, b1, b2| {
-        for p in points.iter() {
-            p.along_normal.apply(c.normal, p.normal_impulse, b1, b2);
-        }
-        let f = &c.friction;
-        for k in 0..2 {
-            f.along_tangents[k].apply(f.tangents[k], f.tangent_impulse[k], b1, b2);
-        }
-        f.apply_twist(f.twist_impulse, b1, b2);
-    });
+    for_each_contact(
+        colours,
+        (constraints, None),
+        points,
+        bodies,
+        |c, points, b1, b2| {
+            for p in points.iter() {
+                p.along_normal.apply(c.normal, p.normal_impulse, b1, b2);
+            }
+            let f = &c.friction;
+            for k in 0..2 {
+                f.along_tangents[k].apply(f.tangents[k], f.tangent_impulse[k], b1, b2);
+            }
+            f.apply_twist(f.twist_impulse, b1, b2);
+        },
+    );
 }
 
 /// One Gauss-Seidel pass over the contacts. In the soft pass penetration is corrected softly
@@ -577,11 +588,17 @@ pub fn solve(
     pass: Pass,
     max_push: f64,
 ) {
-    for_each_contact(colours, constraints, points, bodies, |c, points, b1, b2| {
-        solve_normals(c, points, (b1, b2), inv_h, pass, max_push);
-        let total: f64 = points.iter().map(|p| p.normal_impulse).sum();
-        c.friction.solve(c.normal, total, b1, b2);
-    });
+    for_each_contact(
+        colours,
+        (constraints, None),
+        points,
+        bodies,
+        |c, points, b1, b2| {
+            solve_normals(c, points, (b1, b2), inv_h, pass, max_push);
+            let total: f64 = points.iter().map(|p| p.normal_impulse).sum();
+            c.friction.solve(c.normal, total, b1, b2);
+        },
+    );
 }
 
 /// The normal impulses of one manifold's points.

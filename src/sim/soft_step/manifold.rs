@@ -45,7 +45,7 @@ pub struct Manifold {
 }
 
 impl Manifold {
-    fn new(body1: usize, body2: usize, normal: DVec3, points: &[ManifoldPoint]) -> Self {
+    pub(super) fn new(body1: usize, body2: usize, normal: DVec3, points: &[ManifoldPoint]) -> Self {
         let mut slots = [ManifoldPoint {
             point: DVec3::ZERO,
             separation: 0.0,

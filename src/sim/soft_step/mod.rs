@@ -577,7 +577,8 @@ impl SoftStep {
         for &i in &w.solved {
             w.before_restitution[i] = (w.bodies[i].linear_velocity, w.bodies[i].angular_velocity);
         }
-        restitution::apply(&w.contacts, &mut w.points, &mut w.bodies);
+        let bouncing =
+            restitution::apply(&w.colours, &mut w.contacts, &mut w.points, &mut w.bodies);
         let rule = restitution::EnergyRule {
             restitution: ctx.settings.restitution,
             friction: ctx.settings.friction,
@@ -587,6 +588,7 @@ impl SoftStep {
             manifolds: &w.manifolds,
             constraints: &w.contacts,
             points: &w.points,
+            bouncing: &bouncing,
         };
         restitution::settle_energy(
             &contacts,

@@ -9,45 +9,52 @@
 //! So per group of touching bodies the restitution impulses are scaled back, if needed, until
 //! the group ends the step with no more energy than it began with.
 
-use super::contact_solver::{ContactConstraint, ContactPoint, bounce_velocity};
+use super::constraint_graph::Colours;
+use super::contact_solver::{ContactConstraint, ContactPoint, bounce_velocity, for_each_contact};
 use super::manifold::{GROUND, Manifold};
 use super::solver_body::SolverBody;
 use crate::sim::body::RigidBody;
-use crate::sim::constraint::pair_mut;
 use glam::DVec3;
+use rayon::prelude::*;
 
 /// Gauss-Seidel passes of the restitution targets.
 pub const ITERATIONS: usize = 8;
 
 /// Drives every bouncing point's normal velocity to its target ([`ITERATIONS`] passes over the
-/// manifolds that have one: in a pile at rest, none).
+/// manifolds that have one: in a pile at rest, none), colour by colour like the other passes.
+/// Returns the indices of those manifolds' constraints.
 pub fn apply(
-    constraints: &[ContactConstraint],
+    colours: &Colours,
+    constraints: &mut [ContactConstraint],
     points: &mut [ContactPoint],
     bodies: &mut [SolverBody],
-) {
+) -> Vec<u32> {
     let bounces = |c: &ContactConstraint, p: &ContactPoint| {
         let threshold = c.restitution_threshold;
         c.restitution > 0.0
             && p.impact_energy > 0.5 * threshold * threshold
             && p.max_normal_impulse != 0.0
     };
-    let bouncing: Vec<&ContactConstraint> = constraints
-        .iter()
-        .filter(|c| {
-            points[c.first..c.first + c.count]
+    let view = (&*constraints, &*points);
+    let bouncing: Vec<u32> = (0..constraints.len())
+        .into_par_iter()
+        .with_min_len(1024)
+        .filter(|&k| {
+            let c = &view.0[k];
+            view.1[c.first..c.first + c.count]
                 .iter()
                 .any(|p| bounces(c, p))
         })
+        .map(|k| k as u32)
         .collect();
+    if bouncing.is_empty() {
+        return bouncing;
+    }
     for _ in 0..ITERATIONS {
-        for &c in &bouncing {
-            let (b1, b2) = pair_mut(bodies, c.body1, c.body2);
+        let selection = (&mut *constraints, Some(&bouncing[..]));
+        for_each_contact(colours, selection, points, bodies, |c, points, b1, b2| {
             let n = c.normal;
-            for p in &mut points[c.first..c.first + c.count] {
-                if !bounces(c, p) {
-                    continue;
-                }
+            for p in points.iter_mut().filter(|p| bounces(c, p)) {
                 let moved = b2.point_displacement(p.r2) - b1.point_displacement(p.r1);
                 let s = p.separation + n.dot(moved);
                 let target =
@@ -61,8 +68,9 @@ pub fn apply(
                 p.restitution_impulse = added;
                 p.along_normal.apply(n, delta, b1, b2);
             }
-        }
+        });
     }
+    bouncing
 }
 
 /// Kinetic plus gravitational potential energy of a body with velocities `v`, `w`.
@@ -77,6 +85,9 @@ pub struct Contacts<'a> {
     pub manifolds: &'a [Manifold],
     pub constraints: &'a [ContactConstraint],
     pub points: &'a [ContactPoint],
+    /// The constraints with a bouncing point ([`apply`]): the only ones with restitution
+    /// impulses.
+    pub bouncing: &'a [u32],
 }
 
 /// How much energy the restitution of one group of bodies may leave it with.
@@ -103,36 +114,52 @@ pub fn settle_energy(
     start: &[f64],
     rule: &EnergyRule,
 ) {
-    for members in bouncing_groups(contacts, poses) {
-        // Energy as a function of the share alpha of restitution kept: a + b alpha + c alpha^2.
-        let (mut a, mut b, mut c, mut initial) = (0.0, 0.0, 0.0, 0.0);
-        for &i in &members {
-            let (body, (v0, w0)) = (&poses[i], before[i]);
-            let (dv, dw) = (
-                bodies[i].linear_velocity - v0,
-                bodies[i].angular_velocity - w0,
-            );
-            let inertia = body.world_inertia();
-            a += energy(body, v0, w0, rule.gravity);
-            b += body.mass * v0.dot(dv) + w0.dot(inertia * dw);
-            c += 0.5 * body.mass * dv.length_squared() + 0.5 * dw.dot(inertia * dw);
-            initial += start[i];
+    let groups = bouncing_groups(contacts, poses);
+    let view = &*bodies;
+    let shares: Vec<f64> = groups
+        .par_iter()
+        .map(|members| group_share(members, (poses, before, view), start, rule))
+        .collect();
+    for (members, alpha) in groups.iter().zip(shares) {
+        if alpha == 1.0 {
+            continue;
         }
-        let slack = 1e-12 * initial.abs().max(1.0);
-        let target = if rule.friction == 0.0 {
-            a + rule.restitution * rule.restitution * (initial - a)
-        } else {
-            (a + b + c).min(initial)
-        };
-        let alpha = share_for(a, b, c, target.min(initial) + slack);
-        if alpha != 1.0 {
-            for &i in &members {
-                let (v0, w0) = before[i];
-                bodies[i].linear_velocity = v0 + alpha * (bodies[i].linear_velocity - v0);
-                bodies[i].angular_velocity = w0 + alpha * (bodies[i].angular_velocity - w0);
-            }
+        for &i in members {
+            let (v0, w0) = before[i];
+            bodies[i].linear_velocity = v0 + alpha * (bodies[i].linear_velocity - v0);
+            bodies[i].angular_velocity = w0 + alpha * (bodies[i].angular_velocity - w0);
         }
     }
+}
+
+/// The share of restitution one group of bodies keeps (see [`settle_energy`]).
+fn group_share(
+    members: &[usize],
+    (poses, before, bodies): (&[RigidBody], &[(DVec3, DVec3)], &[SolverBody]),
+    start: &[f64],
+    rule: &EnergyRule,
+) -> f64 {
+    // Energy as a function of the share alpha of restitution kept: a + b alpha + c alpha^2.
+    let (mut a, mut b, mut c, mut initial) = (0.0, 0.0, 0.0, 0.0);
+    for &i in members {
+        let (body, (v0, w0)) = (&poses[i], before[i]);
+        let (dv, dw) = (
+            bodies[i].linear_velocity - v0,
+            bodies[i].angular_velocity - w0,
+        );
+        let inertia = body.world_inertia();
+        a += energy(body, v0, w0, rule.gravity);
+        b += body.mass * v0.dot(dv) + w0.dot(inertia * dw);
+        c += 0.5 * body.mass * dv.length_squared() + 0.5 * dw.dot(inertia * dw);
+        initial += start[i];
+    }
+    let slack = 1e-12 * initial.abs().max(1.0);
+    let target = if rule.friction == 0.0 {
+        a + rule.restitution * rule.restitution * (initial - a)
+    } else {
+        (a + b + c).min(initial)
+    };
+    share_for(a, b, c, target.min(initial) + slack)
 }
 
 /// Most the restitution impulses may be stretched to reach the energy of the bounce.
@@ -166,15 +193,22 @@ fn bouncing_groups(contacts: &Contacts, poses: &[RigidBody]) -> Vec<Vec<usize>> 
         manifolds,
         constraints,
         points,
+        bouncing,
     } = *contacts;
+    let bounced = |&k: &u32| {
+        let c = &constraints[k as usize];
+        points[c.first..c.first + c.count]
+            .iter()
+            .any(|p| p.restitution_impulse != 0.0)
+    };
     // Most steps nothing bounces: no O(n) scratch then.
-    if points.iter().all(|p| p.restitution_impulse == 0.0) {
+    if !bouncing.iter().any(bounced) {
         return Vec::new();
     }
     let n = poses.len();
     let dynamic = |i: usize| i != GROUND && poses[i].is_awake();
     let mut parent: Vec<usize> = (0..n).collect();
-    let mut bouncing = vec![false; n];
+    let mut bouncing_body = vec![false; n];
     let find = |parent: &mut Vec<usize>, mut x: usize| {
         while parent[x] != x {
             parent[x] = parent[parent[x]];
@@ -182,17 +216,12 @@ fn bouncing_groups(contacts: &Contacts, poses: &[RigidBody]) -> Vec<Vec<usize>> 
         }
         x
     };
-    for (m, c) in manifolds.iter().zip(constraints) {
-        if points[c.first..c.first + c.count]
-            .iter()
-            .all(|p| p.restitution_impulse == 0.0)
-        {
-            continue;
-        }
+    for &k in bouncing.iter().filter(|k| bounced(k)) {
+        let m = &manifolds[k as usize];
         let (i, j) = (m.body1, m.body2);
         for k in [i, j] {
             if dynamic(k) {
-                bouncing[k] = true;
+                bouncing_body[k] = true;
             }
         }
         if dynamic(i) && dynamic(j) {
@@ -202,7 +231,7 @@ fn bouncing_groups(contacts: &Contacts, poses: &[RigidBody]) -> Vec<Vec<usize>> 
     }
     let mut groups: Vec<Vec<usize>> = Vec::new();
     let mut slot = vec![usize::MAX; n];
-    for i in (0..n).filter(|&i| bouncing[i]) {
+    for i in (0..n).filter(|&i| bouncing_body[i]) {
         let root = find(&mut parent, i);
         if slot[root] == usize::MAX {
             slot[root] = groups.len();
