@@ -20,7 +20,7 @@ use super::stats::{Stage, StepStats, Stopwatch};
 use super::step_context::StepContext;
 use glam::DVec3;
 
-/// Scenes with this many bodies step inside the thread pool (see [`World::soft_step`]).
+/// Scenes with this many bodies step inside the thread pool (see [`World::step`]).
 const IN_POOL_BODIES: usize = 64;
 
 #[derive(Debug, Clone)]
@@ -94,6 +94,18 @@ impl World {
 
     /// One time step by the world's solver.
     pub fn step(&mut self) -> StepStats {
+        if self.bodies.len() >= IN_POOL_BODIES
+            && rayon::current_thread_index().is_none()
+            && any_awake(&self.bodies)
+        {
+            // From outside the thread pool every parallel loop that splits would hand its work
+            // over cold (wake a worker, wait on it); inside it they split hot. One hand-over per
+            // step instead of one per loop (pile-200 under the soft step: four passes of every
+            // colour per substep; sparse-1000 under the coursework solver: 40 % of a one-thread
+            // step was spent switching threads). A scene with nothing awake stays here: its step
+            // has no loop to split.
+            return rayon::scope(|_| self.step());
+        }
         let ctx = StepContext::new(&self.settings, self.constraints.len());
         let stats = match ctx.settings.solver {
             Solver::Coursework => self.coursework_step(&ctx),
@@ -117,16 +129,6 @@ impl World {
 
     /// The soft-step solver: collide once, solve and integrate in substeps, then the pose check.
     fn soft_step(&mut self, ctx: &StepContext) -> StepStats {
-        if self.bodies.len() >= IN_POOL_BODIES
-            && rayon::current_thread_index().is_none()
-            && any_awake(&self.bodies)
-        {
-            // From outside the thread pool every parallel loop that splits would hand its work
-            // over cold (wake a worker, wait on it); inside it they split hot. One hand-over per
-            // step instead of one per loop (pile-200: four passes of every colour per substep).
-            // A scene with nothing awake stays here: its step has no loop to split.
-            return rayon::scope(|_| self.soft_step(ctx));
-        }
         let mut stats = StepStats::default();
         let mut watch = Stopwatch::new();
         let scene = Scene {
