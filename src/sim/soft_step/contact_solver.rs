@@ -530,12 +530,23 @@ impl HeldImpulses {
 }
 
 /// Runs `f` on every contact constraint with its points and its two solver bodies, colour by
-/// colour (see [`Colours::for_each`]): the one place the colouring's disjointness is relied on.
-/// With `selected` (increasing constraint indices), on those constraints only.
-pub fn for_each_contact(
+/// colour (see [`Colours::for_each`]).
+fn for_each_contact(
     colours: &Colours,
-    (constraints, selected): (&mut [ContactConstraint], Option<&[u32]>),
+    constraints: &mut [ContactConstraint],
     points: &mut [ContactPoint],
+    bodies: &mut [SolverBody],
+    f: impl Fn(&mut ContactConstraint, &mut [ContactPoint], &mut SolverBody, &mut SolverBody) + Sync,
+) {
+    for_each_contact_in(colours, None, (constraints, points), bodies, f);
+}
+
+/// [`for_each_contact`] on the `selected` constraints (increasing indices) only, or on all: the
+/// one place the colouring's disjointness is relied on.
+pub fn for_each_contact_in(
+    colours: &Colours,
+    selected: Option<&[u32]>,
+    (constraints, points): (&mut [ContactConstraint], &mut [ContactPoint]),
     bodies: &mut [SolverBody],
     f: impl Fn(&mut ContactConstraint, &mut [ContactPoint], &mut SolverBody, &mut SolverBody) + Sync,
 ) {
@@ -559,22 +570,16 @@ pub fn warm_start(
     points: &mut [ContactPoint],
     bodies: &mut [SolverBody],
 ) {
-    for_each_contact(
-        colours,
-        (constraints, None),
-        points,
-        bodies,
-        |c, points, b1, b2| {
-            for p in points.iter() {
-                p.along_normal.apply(c.normal, p.normal_impulse, b1, b2);
-            }
-            let f = &c.friction;
-            for k in 0..2 {
-                f.along_tangents[k].apply(f.tangents[k], f.tangent_impulse[k], b1, b2);
-            }
-            f.apply_twist(f.twist_impulse, b1, b2);
-        },
-    );
+    for_each_contact(colours, constraints, points, bodies, |c, points, b1, b2| {
+        for p in points.iter() {
+            p.along_normal.apply(c.normal, p.normal_impulse, b1, b2);
+        }
+        let f = &c.friction;
+        for k in 0..2 {
+            f.along_tangents[k].apply(f.tangents[k], f.tangent_impulse[k], b1, b2);
+        }
+        f.apply_twist(f.twist_impulse, b1, b2);
+    });
 }
 
 /// One Gauss-Seidel pass over the contacts. In the soft pass penetration is corrected softly
@@ -588,17 +593,11 @@ pub fn solve(
     pass: Pass,
     max_push: f64,
 ) {
-    for_each_contact(
-        colours,
-        (constraints, None),
-        points,
-        bodies,
-        |c, points, b1, b2| {
-            solve_normals(c, points, (b1, b2), inv_h, pass, max_push);
-            let total: f64 = points.iter().map(|p| p.normal_impulse).sum();
-            c.friction.solve(c.normal, total, b1, b2);
-        },
-    );
+    for_each_contact(colours, constraints, points, bodies, |c, points, b1, b2| {
+        solve_normals(c, points, (b1, b2), inv_h, pass, max_push);
+        let total: f64 = points.iter().map(|p| p.normal_impulse).sum();
+        c.friction.solve(c.normal, total, b1, b2);
+    });
 }
 
 /// The normal impulses of one manifold's points.

@@ -10,7 +10,9 @@
 //! the group ends the step with no more energy than it began with.
 
 use super::constraint_graph::Colours;
-use super::contact_solver::{ContactConstraint, ContactPoint, bounce_velocity, for_each_contact};
+use super::contact_solver::{
+    ContactConstraint, ContactPoint, bounce_velocity, for_each_contact_in,
+};
 use super::manifold::{GROUND, Manifold};
 use super::solver_body::SolverBody;
 use crate::sim::body::RigidBody;
@@ -51,8 +53,8 @@ pub fn apply(
         return bouncing;
     }
     for _ in 0..ITERATIONS {
-        let selection = (&mut *constraints, Some(&bouncing[..]));
-        for_each_contact(colours, selection, points, bodies, |c, points, b1, b2| {
+        let (selected, contacts) = (Some(&bouncing[..]), (&mut *constraints, &mut *points));
+        for_each_contact_in(colours, selected, contacts, bodies, |c, points, b1, b2| {
             let n = c.normal;
             for p in points.iter_mut().filter(|p| bounces(c, p)) {
                 let moved = b2.point_displacement(p.r2) - b1.point_displacement(p.r1);
