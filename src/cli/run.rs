@@ -53,6 +53,8 @@ pub struct RunSummary {
     pub max_constraint_violation: f64,
     pub finite: bool,
     pub quarantined: Vec<usize>,
+    /// Bodies asleep after the last step (soft-step solver).
+    pub asleep_at_end: usize,
     /// Mean milliseconds per step in each stage.
     pub stage_ms: StageTimings,
     pub settings: tumble::Settings,
@@ -161,6 +163,7 @@ impl RunSummary {
             max_constraint_violation: world.max_constraint_violation(),
             finite: world.all_finite(),
             quarantined: Vec::new(),
+            asleep_at_end: 0,
             stage_ms: StageTimings::default(),
             settings,
         }
@@ -177,6 +180,7 @@ impl RunSummary {
         self.max_penetration = self.max_penetration.max(stats.max_penetration);
         self.stage_ms.add(&stats.timings);
         self.quarantined.extend(stats.quarantined);
+        self.asleep_at_end = stats.asleep;
         if !world.constraints.is_empty() {
             self.max_constraint_violation = self
                 .max_constraint_violation
@@ -232,6 +236,12 @@ fn print_summary(s: &RunSummary) {
         s.energy_end,
         100.0 * (s.energy_end - s.energy_start) / s.energy_start.abs().max(1e-300)
     );
+    if s.asleep_at_end > 0 {
+        println!(
+            "asleep at the end: {} of {} bodies",
+            s.asleep_at_end, s.bodies
+        );
+    }
     println!("all values finite: {}", s.finite);
     let stages: Vec<String> = s
         .stage_ms
