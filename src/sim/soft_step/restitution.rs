@@ -118,8 +118,10 @@ pub fn settle_energy(
 ) {
     let groups = bouncing_groups(contacts, poses);
     let view = &*bodies;
+    // Most steps have a few small groups: on one thread then.
     let shares: Vec<f64> = groups
         .par_iter()
+        .with_min_len(16)
         .map(|members| group_share(members, (poses, before, view), start, rule))
         .collect();
     for (members, alpha) in groups.iter().zip(shares) {
