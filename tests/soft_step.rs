@@ -26,21 +26,7 @@ fn settling(dt: f64) -> Settings {
 }
 
 fn boxes(stack: usize, settings: Settings) -> World {
-    let s = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(1.0, 0.5, 0.75))).unwrap();
-    let bodies = (0..stack)
-        .map(|k| {
-            let y = 0.5 + 1.0 * k as f64;
-            RigidBody::on_shape(
-                &s,
-                0,
-                100.0,
-                false,
-                DVec3::new(0.0, y, 0.0),
-                DQuat::IDENTITY,
-            )
-        })
-        .collect();
-    World::new(vec![s], vec!["box".into()], bodies, Vec::new(), settings)
+    tumble::scene::generate::stack(stack, settings)
 }
 
 /// Settles `world` for 3 s, then returns how far any body moves from there over 10 s.

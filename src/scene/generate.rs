@@ -242,9 +242,29 @@ pub fn rope(n: usize, settings: Settings) -> World {
     )
 }
 
-/// Generated scene by name: `sparse`, `scatter`, `pile`, `chain` or `rope`.
+/// `stack-N`: N boxes of 2 x 1 x 1.5 (density 100) stacked from the ground up, each resting on
+/// the one below: a tower that starts at rest (the soak's, and the tests' stacks).
+pub fn stack(n: usize, settings: Settings) -> World {
+    let shape = shape_of(&assets::cuboid(DVec3::new(1.0, 0.5, 0.75)));
+    let bodies = (0..n)
+        .map(|k| {
+            let position = DVec3::new(0.0, 0.5 + k as f64, 0.0);
+            RigidBody::on_shape(&shape, 0, 100.0, false, position, DQuat::IDENTITY)
+        })
+        .collect();
+    World::new(
+        vec![shape],
+        vec!["box".into()],
+        bodies,
+        Vec::new(),
+        settings,
+    )
+}
+
+/// Generated scene by name: `sparse`, `scatter`, `pile`, `chain`, `rope` or `stack`.
 pub fn by_name(name: &str, n: usize, settings: Settings) -> Option<World> {
     match name {
+        "stack" => Some(stack(n, settings)),
         "sparse" => Some(sparse(n, settings)),
         "scatter" => Some(scatter(n, settings)),
         "pile" => Some(pile(n, settings)),
