@@ -79,6 +79,10 @@ fn main() -> ExitCode {
             for (name, file) in tumble::BUILTIN_SCENES {
                 println!("{name:16} scenes/{file}");
             }
+            println!("\ngenerated (N bodies, at most 1,000,000):");
+            for (name, what) in tumble::scene::generate::FAMILIES {
+                println!("{name:16} {what}");
+            }
             Ok(())
         }
         Some(Command::GenAssets { root }) => gen_assets(&root),

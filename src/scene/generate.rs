@@ -261,6 +261,25 @@ pub fn stack(n: usize, settings: Settings) -> World {
     )
 }
 
+/// The generated families, as `tumble scenes` lists them.
+pub const FAMILIES: [(&str, &str); 6] = [
+    (
+        "sparse-N",
+        "N bodies in the same 400 x 400 square (the coursework's comparison)",
+    ),
+    (
+        "scatter-N",
+        "N bodies at sparse-1000's spacing, the area growing with N",
+    ),
+    ("pile-N", "N bodies dropped into a walled bin"),
+    ("chain-N", "N/10 chains of ten links"),
+    (
+        "rope-N",
+        "one rope of N links swinging down from the horizontal",
+    ),
+    ("stack-N", "N boxes built resting on each other"),
+];
+
 /// Generated scene by name: `sparse`, `scatter`, `pile`, `chain`, `rope` or `stack`.
 pub fn by_name(name: &str, n: usize, settings: Settings) -> Option<World> {
     match name {
@@ -322,4 +341,30 @@ pub fn random(seed: u64, n: usize, max_speed: f64, settings: Settings) -> World 
         })
         .collect();
     World::new(shapes, names, bodies, Vec::new(), settings)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ConstraintsChoice;
+
+    /// Every family `tumble scenes` lists loads by its name, and a stack is built resting: each
+    /// box's bottom on the top of the one below, the first on the ground.
+    #[test]
+    fn every_listed_family_loads_and_a_stack_starts_at_rest() {
+        for (family, _) in FAMILIES {
+            let name = family.replace('N', "40");
+            let world = crate::scene::load(&name, &ConstraintsChoice::Auto, Settings::default());
+            assert!(world.is_ok_and(|w| !w.bodies.is_empty()), "{name}");
+        }
+        let world = stack(4, Settings::default());
+        let half_height = world.shapes[0].local_box_half_extents.y;
+        for (k, b) in world.bodies.iter().enumerate() {
+            let bottom = b.position.y - half_height;
+            assert!(
+                (bottom - 2.0 * half_height * k as f64).abs() < 1e-12,
+                "box {k}"
+            );
+        }
+    }
 }

@@ -61,12 +61,14 @@ pub fn load(
         ),
         None => {
             let names: Vec<&str> = BUILTIN_SCENES.iter().map(|(n, _)| *n).collect();
+            let families: Vec<&str> = generate::FAMILIES.iter().map(|(n, _)| *n).collect();
             Err(LoadError::new(
                 path,
                 None,
                 format!(
-                    "no such file, and not a built-in scene (built-in: {}; generated: sparse-N, scatter-N, pile-N, chain-N, rope-N, stack-N)",
-                    names.join(", ")
+                    "no such file, and not a built-in scene (built-in: {}; generated: {})",
+                    names.join(", "),
+                    families.join(", ")
                 ),
             ))
         }
