@@ -26,7 +26,7 @@ enum Command {
     /// Benchmarks: `scale` (run time against scene size) and `accuracy` (error against run time).
     #[command(subcommand)]
     Bench(BenchCommand),
-    /// List the built-in scenes.
+    /// List the built-in scenes and the generated families.
     Scenes,
     /// Regenerate tumble's meshes in assets/ and its generated scenes in scenes/.
     GenAssets {
