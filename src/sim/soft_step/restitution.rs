@@ -199,14 +199,16 @@ fn bouncing_groups(contacts: &Contacts, poses: &[RigidBody]) -> Vec<Vec<usize>> 
         points,
         bouncing,
     } = *contacts;
-    let bounced = |&k: &u32| {
-        let c = &constraints[k as usize];
-        points[c.first..c.first + c.count]
-            .iter()
-            .any(|p| p.restitution_impulse != 0.0)
-    };
+    let bounced: Vec<u32> = (bouncing.iter().copied())
+        .filter(|&k| {
+            let c = &constraints[k as usize];
+            points[c.first..c.first + c.count]
+                .iter()
+                .any(|p| p.restitution_impulse != 0.0)
+        })
+        .collect();
     // Most steps nothing bounces: no O(n) scratch then.
-    if !bouncing.iter().any(bounced) {
+    if bounced.is_empty() {
         return Vec::new();
     }
     let n = poses.len();
@@ -220,7 +222,7 @@ fn bouncing_groups(contacts: &Contacts, poses: &[RigidBody]) -> Vec<Vec<usize>> 
         }
         x
     };
-    for &k in bouncing.iter().filter(|k| bounced(k)) {
+    for &k in &bounced {
         let m = &manifolds[k as usize];
         let (i, j) = (m.body1, m.body2);
         for k in [i, j] {
