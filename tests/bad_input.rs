@@ -105,6 +105,15 @@ fn missing_files() {
         None,
         "not a built-in scene",
     );
+    for name in ["stack-0", "pile-x", "scatter-1000001", "rope-"] {
+        expect(
+            tumble::scene::load(name, &ConstraintsChoice::Auto, Settings::default())
+                .map(|_| unreachable!()),
+            name,
+            None,
+            "N must be a whole number from 1 to 1000000",
+        );
+    }
 }
 
 #[test]

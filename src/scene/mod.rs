@@ -50,7 +50,7 @@ pub fn load(
         return load_file(path, constraints, settings);
     }
     if let Some(world) = generated(scene, &settings) {
-        return Ok(world);
+        return world.map_err(|problem| LoadError::new(path, None, problem));
     }
     match BUILTIN_SCENES.iter().find(|(name, _)| *name == scene) {
         Some((_, file)) => load_with(
@@ -75,12 +75,25 @@ pub fn load(
     }
 }
 
-/// `sparse-N`, `scatter-N`, `pile-N`, `chain-N`, `rope-N` or `stack-N` (N at most 1,000,000): a
-/// generated scene.
-fn generated(name: &str, settings: &Settings) -> Option<World> {
+/// Most bodies a generated scene may have.
+const MAX_GENERATED: usize = 1_000_000;
+
+/// `sparse-N`, `scatter-N`, `pile-N`, `chain-N`, `rope-N` or `stack-N`: a generated scene, an
+/// error naming the problem when the family is known but N is not a count from 1 to
+/// `MAX_GENERATED`, and `None` when the name is no family's.
+fn generated(name: &str, settings: &Settings) -> Option<Result<World, String>> {
     let (kind, n) = name.rsplit_once('-')?;
-    let n: usize = n.parse().ok().filter(|n| (1..=1_000_000).contains(n))?;
-    generate::by_name(kind, n, settings.clone())
+    let family = format!("{kind}-N");
+    generate::FAMILIES.iter().find(|(f, _)| *f == family)?;
+    let n = match n.parse::<usize>() {
+        Ok(n) if (1..=MAX_GENERATED).contains(&n) => n,
+        _ => {
+            return Some(Err(format!(
+                "{family}: N must be a whole number from 1 to {MAX_GENERATED}, not '{n}'"
+            )));
+        }
+    };
+    generate::by_name(kind, n, settings.clone()).map(Ok)
 }
 
 /// Loads a scene file from disk; mesh paths are relative to its folder.
