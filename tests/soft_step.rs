@@ -465,3 +465,21 @@ fn the_coursework_solver_ignores_the_soft_step_settings() {
         );
     }
 }
+
+/// Each solver's work is timed under its own stages: the soft step's under `solve_prepare`,
+/// `solve` and `solve_finish`, the coursework's under its contact and ground stages, and
+/// neither charges the other's.
+#[test]
+fn each_solver_times_its_work_under_its_own_stages() {
+    use tumble::sim::stats::Stage;
+    let soft = [Stage::SolvePrepare, Stage::Solve, Stage::SolveFinish];
+    let coursework = [Stage::ContactResolution, Stage::Ground];
+    let mut world = boxes(3, accurate(0.02));
+    let t = world.step().timings;
+    assert!(soft.iter().all(|&s| t.get(s) > 0.0), "{t:?}");
+    assert!(coursework.iter().all(|&s| t.get(s) == 0.0), "{t:?}");
+    let mut world = boxes(3, Settings::default());
+    let t = world.step().timings;
+    assert!(coursework.iter().all(|&s| t.get(s) > 0.0), "{t:?}");
+    assert!(soft.iter().all(|&s| t.get(s) == 0.0), "{t:?}");
+}

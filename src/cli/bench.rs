@@ -166,7 +166,16 @@ fn print_scale(report: &ScaleReport) {
                 m.late_median_ms_per_step,
                 s("broad_phase"),
                 s("narrow_phase"),
-                s("contact_resolution") + s("ground") + s("solve"),
+                [
+                    "contact_resolution",
+                    "ground",
+                    "solve_prepare",
+                    "solve",
+                    "solve_finish"
+                ]
+                .map(s)
+                .iter()
+                .sum::<f64>(),
                 s("constraints"),
                 s("integrate"),
                 m.constraint_visits_per_step,

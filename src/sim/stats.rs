@@ -21,14 +21,21 @@ pub enum Stage {
     Ground,
     /// Distance constraints (coursework solver).
     Constraints,
-    /// Contacts and constraints solved together in substeps (soft-step solver).
+    /// Soft-step solver: the constraint graph's colours, solver bodies, contact and joint rows
+    /// warm-started from the last step's impulses.
+    SolvePrepare,
+    /// Soft-step solver: contacts and constraints solved together in substeps, the solved
+    /// bodies' integration between them, and the final pass.
     Solve,
+    /// Soft-step solver: the restitution pass and its energy rule, velocities back into the
+    /// bodies, sleeping islands, impulses kept for the next step.
+    SolveFinish,
     /// Finiteness check: bodies whose state blew up are frozen at their last good pose.
     PoseCheck,
 }
 
 impl Stage {
-    pub const COUNT: usize = 8;
+    pub const COUNT: usize = 10;
     pub const ALL: [Stage; Stage::COUNT] = [
         Stage::Integrate,
         Stage::BroadPhase,
@@ -36,7 +43,9 @@ impl Stage {
         Stage::ContactResolution,
         Stage::Ground,
         Stage::Constraints,
+        Stage::SolvePrepare,
         Stage::Solve,
+        Stage::SolveFinish,
         Stage::PoseCheck,
     ];
 
@@ -49,7 +58,9 @@ impl Stage {
             Stage::ContactResolution => "contact_resolution",
             Stage::Ground => "ground",
             Stage::Constraints => "constraints",
+            Stage::SolvePrepare => "solve_prepare",
             Stage::Solve => "solve",
+            Stage::SolveFinish => "solve_finish",
             Stage::PoseCheck => "pose_check",
         }
     }

@@ -225,7 +225,7 @@ impl SoftStep {
         }
         let pairs = self.broad_phase(ctx, &mut scene, broad, watch, stats);
         self.narrow_phase(scene.bodies, scene.shapes, broad, &pairs, watch, stats);
-        watch.enter(Stage::Solve);
+        watch.enter(Stage::SolvePrepare);
         let view = &*scene.bodies;
         let w = &mut self.work;
         w.colours
@@ -263,6 +263,7 @@ impl SoftStep {
         }
         self.work.kick(kicks.half);
         self.final_pass(scene.bodies, &substeps);
+        watch.enter(Stage::SolveFinish);
         self.finish(ctx, (scene.bodies, scene.constraints), stats);
     }
 
