@@ -246,6 +246,7 @@ fn print_summary(s: &RunSummary) {
     let stages: Vec<String> = s
         .stage_ms
         .iter()
+        .filter(|(stage, _)| stage.runs_under(s.settings.solver))
         .map(|(stage, ms)| format!("{} {ms:.3}", stage.name()))
         .collect();
     println!("ms/step: {}", stages.join(", "));

@@ -1,6 +1,7 @@
 //! What one step did, returned by `World::step` rather than printed, and the stopwatch that
 //! times its stages.
 
+use crate::sim::settings::Solver;
 use serde::Serialize;
 use serde::ser::SerializeMap;
 use std::time::Instant;
@@ -67,6 +68,18 @@ impl Stage {
 
     fn index(self) -> usize {
         self as usize
+    }
+
+    /// Whether `solver`'s step has this stage: summaries and the viewer panel list only those
+    /// (the JSON and the bench CSV keep every stage, so their layout does not depend on it).
+    pub fn runs_under(self, solver: Solver) -> bool {
+        match self {
+            Stage::ContactResolution | Stage::Ground | Stage::Constraints => {
+                solver == Solver::Coursework
+            }
+            Stage::SolvePrepare | Stage::Solve | Stage::SolveFinish => solver == Solver::SoftStep,
+            Stage::Integrate | Stage::BroadPhase | Stage::NarrowPhase | Stage::PoseCheck => true,
+        }
     }
 }
 

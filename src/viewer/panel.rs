@@ -627,7 +627,8 @@ fn stepping_rows(ui: &mut egui::Ui, session: &Session, lane: &Lane) {
     }
     stat(ui, "steps this frame", format!("{}", lane.frame_steps));
     let steps = lane.frame_steps.max(1) as f64;
-    for (stage, seconds) in lane.frame_timings.iter() {
+    let solver = lane.world.settings.solver;
+    for (stage, seconds) in (lane.frame_timings.iter()).filter(|(s, _)| s.runs_under(solver)) {
         stat(
             ui,
             &format!("  {}", stage.name().replace('_', " ")),
