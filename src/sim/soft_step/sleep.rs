@@ -117,6 +117,8 @@ pub fn settle(
     }
 }
 
+/// Wakes the sleeping islands of `seeds` (every sleeping body joined to one by touching
+/// contacts or constraints); false if no seed was asleep.
 pub fn wake(
     bodies: &mut [RigidBody],
     constraints: &[DistanceConstraint],
