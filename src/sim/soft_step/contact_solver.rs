@@ -188,13 +188,14 @@ impl CachedManifold {
 #[derive(Debug, Clone, Default)]
 pub struct ContactCache {
     pairs: Vec<(usize, usize)>,
-    manifolds: Vec<CachedManifold>,
+    /// What each pair carries, at the same index.
+    carried: Vec<CachedManifold>,
 }
 
 impl ContactCache {
     fn lookup(&self, pair: (usize, usize)) -> Option<&CachedManifold> {
         let k = self.pairs.binary_search(&pair).ok()?;
-        Some(&self.manifolds[k])
+        Some(&self.carried[k])
     }
 
     /// The body pairs remembered (body 1 may be [`GROUND`]).
@@ -229,11 +230,11 @@ impl ContactCache {
         let collided = |pair: &(usize, usize)| order.binary_search_by_key(pair, |e| e.0).is_ok();
         self.retain(|pair| sleeping(pair) && !collided(&pair));
         let (kept, total) = (self.pairs.len(), self.pairs.len() + order.len());
-        self.manifolds.reserve_exact(order.len());
+        self.carried.reserve_exact(order.len());
         // SAFETY: the entries are `Copy`; every place below `total` is written before the
         // length is set back (the kept and the new pairs are disjoint, so their places are).
-        unsafe { self.manifolds.set_len(0) };
-        let slots = &mut self.manifolds.spare_capacity_mut()[..total];
+        unsafe { self.carried.set_len(0) };
+        let slots = &mut self.carried.spare_capacity_mut()[..total];
         // Kept entries move up only, the last first, so none is overwritten before it moves.
         for (s, pair) in self.pairs.iter().enumerate().rev() {
             slots[s + order.partition_point(|(p, _)| p < pair)] = slots[s];
@@ -252,7 +253,7 @@ impl ContactCache {
                 unsafe { slots.write(place, std::mem::MaybeUninit::new(entry)) };
             });
         // SAFETY: all `total` places are written (see above).
-        unsafe { self.manifolds.set_len(total) };
+        unsafe { self.carried.set_len(total) };
         merge_into(&mut self.pairs, kept, order.iter().map(|(pair, _)| *pair));
     }
 
@@ -262,17 +263,17 @@ impl ContactCache {
         for k in 0..self.pairs.len() {
             if keep(self.pairs[k]) {
                 self.pairs[kept] = self.pairs[k];
-                self.manifolds[kept] = self.manifolds[k];
+                self.carried[kept] = self.carried[k];
                 kept += 1;
             }
         }
         self.pairs.truncate(kept);
-        self.manifolds.truncate(kept);
+        self.carried.truncate(kept);
     }
 
     pub fn heap_bytes(&self) -> usize {
         self.pairs.capacity() * size_of::<(usize, usize)>()
-            + self.manifolds.capacity() * size_of::<CachedManifold>()
+            + self.carried.capacity() * size_of::<CachedManifold>()
     }
 
     /// Number of manifolds remembered.
@@ -840,7 +841,7 @@ mod tests {
                 fresh.map(|(m, c)| ((m.body1, m.body2), CachedManifold::new(m, c, &points))),
             );
             model.sort_by_key(|(pair, _)| *pair);
-            let entries: Vec<_> = cache.pairs().zip(cache.manifolds.iter().copied()).collect();
+            let entries: Vec<_> = cache.pairs().zip(cache.carried.iter().copied()).collect();
             assert!(entries == model, "step {step}");
         }
     }
