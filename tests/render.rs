@@ -548,3 +548,50 @@ fn asleep_bodies_are_dimmed() {
         }
     }
 }
+
+/// With fixed bodies hidden, a pile's bin shows what is inside it: from the framed view the
+/// walls cover the pile, hidden they leave no pixel of their colour and the bodies appear.
+#[test]
+fn hidden_fixed_bodies_leave_no_pixel_and_show_the_pile() {
+    let mut world = load("pile-60");
+    for _ in 0..100 {
+        world.step();
+    }
+    let (width, height) = (96, 72);
+    let Some(mut r) = renderer_or_skip(&world, width, height) else {
+        return;
+    };
+    let camera = framed(&world, width, height);
+    let fixed: Vec<[u8; 3]> = (world.bodies.iter().enumerate())
+        .filter(|(_, b)| b.fixed)
+        .map(|(i, _)| body_bytes(&world, i))
+        .collect();
+    let moving: Vec<[u8; 3]> = (world.bodies.iter().enumerate())
+        .filter(|(_, b)| !b.fixed)
+        .map(|(i, _)| body_bytes(&world, i))
+        .collect();
+    assert!(!fixed.is_empty() && fixed.iter().all(|f| !moving.contains(f)));
+    let mut counts = |fixed_bodies: bool| {
+        let options = DrawOptions {
+            grid: false,
+            flat: true,
+            fixed_bodies,
+            ..DrawOptions::default()
+        };
+        let image = r.render(&world, &camera, &options).unwrap();
+        let pixels = (0..height).flat_map(|j| (0..width).map(move |i| (i, j)));
+        let mut n = (0, 0);
+        for p in pixels.map(|(i, j)| image.pixel(i, j)) {
+            n.0 += fixed.iter().any(|&c| close(p, c, 2)) as usize;
+            n.1 += moving.iter().any(|&c| close(p, c, 2)) as usize;
+        }
+        n
+    };
+    let (shown, hidden) = (counts(true), counts(false));
+    assert!(shown.0 > 500, "walls shown: {shown:?}");
+    assert_eq!(hidden.0, 0, "walls hidden: {hidden:?}");
+    assert!(
+        hidden.1 > shown.1 + 100,
+        "shown {shown:?}, hidden {hidden:?}"
+    );
+}

@@ -79,6 +79,9 @@ pub struct ViewArgs {
     /// Start with shadows off (a panel toggle).
     #[arg(long)]
     pub no_shadows: bool,
+    /// Start with fixed bodies hidden, to see into a pile's bin (a panel toggle).
+    #[arg(long)]
+    pub no_fixed: bool,
     /// Camera: YAW,PITCH[,DISTANCE[,X,Y,Z]] in degrees and scene units (default: framed scene).
     #[arg(long, value_name = "SPEC", allow_hyphen_values = true)]
     pub camera: Option<String>,
@@ -138,6 +141,9 @@ pub struct RecordArgs {
     /// No shadows.
     #[arg(long)]
     pub no_shadows: bool,
+    /// No fixed bodies (a pile's walls), to see into the bin.
+    #[arg(long)]
+    pub no_fixed: bool,
     #[command(flatten)]
     pub settings: SettingsArgs,
 }
@@ -189,6 +195,7 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
         compare: args.compare.clone(),
         layout: layout(args.ghost),
         shadows: !args.no_shadows,
+        fixed_bodies: !args.no_fixed,
         parse_settings: parse_compare,
     };
     super::interrupt::install();
@@ -218,6 +225,7 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
             constraints: !args.no_constraints,
             contacts: args.contacts,
             shadows: !args.no_shadows,
+            fixed_bodies: !args.no_fixed,
             layout: layout(args.ghost),
             ..DrawOptions::default()
         },

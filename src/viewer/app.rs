@@ -52,6 +52,8 @@ pub struct ViewOptions {
     pub layout: Layout,
     /// Shadows on at the start.
     pub shadows: bool,
+    /// Start with fixed bodies shown (a panel toggle).
+    pub fixed_bodies: bool,
     /// Turns a compare spec into settings: the command line's own parser (the viewer cannot
     /// depend on it).
     pub parse_settings: fn(&str) -> Result<Settings, String>,
@@ -127,6 +129,7 @@ impl App {
         let mut panel = PanelState::default();
         panel.draw.layout = options.layout;
         panel.draw.shadows = options.shadows;
+        panel.draw.fixed_bodies = options.fixed_bodies;
         App {
             options,
             session,

@@ -47,7 +47,7 @@ impl Layer {
         eye: DVec3,
         options: &DrawOptions,
     ) {
-        self.build_instances(world, scene, options.selected);
+        self.build_instances(world, scene, options);
         self.instance_buffer.write(device, queue, &self.instances);
         self.build_lines(world, scene, eye, options);
         self.line_buffer.write(device, queue, &self.lines);
@@ -59,12 +59,19 @@ impl Layer {
     }
 
     /// One instance per body in draw order: pose in f32, palette colour (the quarantine colour,
-    /// dimmed when asleep), and the highlight flag of the selected body.
-    fn build_instances(&mut self, world: &World, scene: &SceneData, selected: Option<usize>) {
+    /// dimmed when asleep), and the highlight flag of the selected body. A hidden fixed body
+    /// keeps its instance (the shapes' instance ranges stay as they are) with a zero rotation,
+    /// which the shaders' `rotate` turns into no area at all: drawn nowhere, casting no shadow,
+    /// never picked.
+    fn build_instances(&mut self, world: &World, scene: &SceneData, options: &DrawOptions) {
         self.instances.clear();
         for &index in &scene.order {
             let body = &world.bodies[index as usize];
-            let q = body.orientation.as_quat();
+            let hidden = body.fixed && !options.fixed_bodies;
+            let q = match hidden {
+                true => glam::Quat::from_xyzw(0.0, 0.0, 0.0, 0.0),
+                false => body.orientation.as_quat(),
+            };
             let p = body.position.as_vec3();
             let color = if body.quarantined {
                 palette::linear(palette::QUARANTINED_SRGB)
@@ -73,7 +80,7 @@ impl Layer {
             } else {
                 scene.base_colors[index as usize]
             };
-            let highlight = if selected == Some(index as usize) {
+            let highlight = if options.selected == Some(index as usize) {
                 1.0
             } else {
                 0.0

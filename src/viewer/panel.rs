@@ -377,6 +377,8 @@ fn display_ui(ui: &mut egui::Ui, session: &mut Session, state: &mut PanelState) 
             "Green within bounds, through yellow to red at 10% of the rest length outside them",
         );
     ui.checkbox(&mut draw.contacts, "Contact points and normals");
+    ui.checkbox(&mut draw.fixed_bodies, "Fixed bodies")
+        .on_hover_text("Walls, slopes and anchors; hide them to see into a pile's bin");
     ui.add_enabled(
         draw.selected.is_some(),
         egui::Checkbox::new(&mut state.follow, "Camera follows the selected body"),

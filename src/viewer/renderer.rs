@@ -36,6 +36,8 @@ pub struct DrawOptions {
     pub constraints: bool,
     /// Contact points and normals at the current poses.
     pub contacts: bool,
+    /// Fixed bodies (a pile's bin, a slope); hidden, the view sees into a bin from any side.
+    pub fixed_bodies: bool,
     /// Highlighted body.
     pub selected: Option<usize>,
     /// Unlit: every body in its exact palette colour, no shadows (for tests).
@@ -52,6 +54,7 @@ impl Default for DrawOptions {
             grid: true,
             constraints: true,
             contacts: false,
+            fixed_bodies: true,
             selected: None,
             flat: false,
             shadows: true,
