@@ -120,7 +120,7 @@ fn expected_at(
         for di in -1i32..=1 {
             let (x, y) = (i as f64 + 0.5 + di as f64, j as f64 + 0.5 + dj as f64);
             let (origin, dir) = camera.ray(x, y, width as f64, height as f64);
-            let hit = pick(world, origin, dir).map(|(b, _)| b);
+            let hit = pick(world, (origin, dir), true).map(|(b, _)| b);
             match seen {
                 None => seen = Some(hit),
                 Some(s) if s != hit => return None,
@@ -344,7 +344,7 @@ fn ground_point(
     size: (u32, u32),
 ) -> Option<DVec3> {
     let (origin, dir) = camera.ray(x, y, size.0 as f64, size.1 as f64);
-    if dir.y >= -1e-9 || pick(world, origin, dir).is_some() {
+    if dir.y >= -1e-9 || pick(world, (origin, dir), true).is_some() {
         return None;
     }
     Some(origin + dir * (-origin.y / dir.y))
@@ -354,7 +354,7 @@ fn ground_point(
 /// against the core's triangles.
 fn in_shadow(world: &World, p: DVec3) -> bool {
     let light = tumble::viewer::shadow::light_direction();
-    pick(world, p + DVec3::Y * 1e-9, light).is_some()
+    pick(world, (p + DVec3::Y * 1e-9, light), true).is_some()
 }
 
 fn brightness(p: [u8; 4]) -> i32 {

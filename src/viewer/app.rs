@@ -209,7 +209,8 @@ impl App {
             p,
         );
         self.panel.draw.selected = ray.and_then(|r| {
-            picking::pick(&self.session.lanes[r.lane].world, r.origin, r.dir).map(|(i, _)| i)
+            let world = &self.session.lanes[r.lane].world;
+            picking::pick(world, (r.origin, r.dir), self.panel.draw.fixed_bodies).map(|(i, _)| i)
         });
     }
 
@@ -222,7 +223,8 @@ impl App {
             return;
         };
         let world = &self.session.lanes[ray.lane].world;
-        let Some((index, t)) = picking::pick(world, ray.origin, ray.dir) else {
+        let fixed = self.panel.draw.fixed_bodies;
+        let Some((index, t)) = picking::pick(world, (ray.origin, ray.dir), fixed) else {
             return;
         };
         let point = ray.origin + t * ray.dir;

@@ -36,11 +36,19 @@ fn ray_triangle(origin: DVec3, dir: DVec3, a: DVec3, b: DVec3, c: DVec3) -> Opti
     (t > 0.0).then_some(t)
 }
 
-/// The body the ray hits first, and the distance to the hit.
-pub fn pick(world: &World, origin: DVec3, dir: DVec3) -> Option<(usize, f64)> {
+/// The body the ray hits first, and the distance to the hit; fixed bodies only with
+/// `include_fixed` (the view hides them on demand, and a hidden wall must not take the click).
+pub fn pick(
+    world: &World,
+    (origin, dir): (DVec3, DVec3),
+    include_fixed: bool,
+) -> Option<(usize, f64)> {
     let aabbs = world.body_aabbs();
     let mut best: Option<(usize, f64)> = None;
     for (index, body) in world.bodies.iter().enumerate() {
+        if body.fixed && !include_fixed {
+            continue;
+        }
         let Some(enter) = ray_box(origin, dir, aabbs[index].min, aabbs[index].max) else {
             continue;
         };
@@ -110,8 +118,22 @@ mod tests {
         for (index, body) in world.bodies.iter().enumerate() {
             // From far above straight down onto each body's centre: the body itself or one above it.
             let origin = body.position + DVec3::new(0.0, 1000.0, 0.0);
-            let (hit, _) = pick(&world, origin, DVec3::NEG_Y).expect("a hit");
+            let (hit, _) = pick(&world, (origin, DVec3::NEG_Y), true).expect("a hit");
             assert!(hit == index || world.bodies[hit].position.y > body.position.y);
         }
+    }
+
+    /// A ray from outside a pile's bin hits a wall; with fixed bodies left out, a body inside.
+    #[test]
+    fn hidden_fixed_bodies_are_not_picked() {
+        let world = crate::scene::generate::pile(60, crate::Settings::default());
+        let inside = (world.bodies.iter().position(|b| !b.fixed)).expect("a body");
+        let target = world.bodies[inside].position;
+        let origin = target + DVec3::new(1000.0, 0.0, 0.0);
+        let ray = (origin, DVec3::NEG_X);
+        let (wall, _) = pick(&world, ray, true).expect("a hit");
+        assert!(world.bodies[wall].fixed);
+        let (hit, _) = pick(&world, ray, false).expect("a hit");
+        assert!(!world.bodies[hit].fixed);
     }
 }
