@@ -17,6 +17,15 @@ fn load(scene: &str) -> World {
         .expect("built-in scene loads")
 }
 
+/// A built-in or generated scene after `steps` steps.
+fn stepped(scene: &str, steps: usize) -> World {
+    let mut world = load(scene);
+    for _ in 0..steps {
+        world.step();
+    }
+    world
+}
+
 fn renderer_or_skip(world: &World, width: u32, height: u32) -> Option<OffscreenRenderer> {
     match OffscreenRenderer::new(world, width, height) {
         Ok(r) => Some(r),
@@ -39,10 +48,7 @@ fn framed(world: &World, width: u32, height: u32) -> OrbitCamera {
 /// Every surface vertex of every body, as the compute pass running the vertex shader's
 /// `body_point` computes it from the instance buffer, against the core's `currV`.
 fn check_vertices(scene: &str, steps: usize) {
-    let mut world = load(scene);
-    for _ in 0..steps {
-        world.step();
-    }
+    let world = stepped(scene, steps);
     let Some(mut r) = renderer_or_skip(&world, 64, 64) else {
         return;
     };
@@ -142,10 +148,7 @@ fn body_bytes(world: &World, index: usize) -> [u8; 3] {
 /// Flat-shaded: every body pixel is exactly the body's palette colour, so the picture can be
 /// compared with the core pixel by pixel at the projected centres of the bodies.
 fn check_pixels(scene: &str, steps: usize, width: u32, height: u32) {
-    let mut world = load(scene);
-    for _ in 0..steps {
-        world.step();
-    }
+    let world = stepped(scene, steps);
     let Some(mut r) = renderer_or_skip(&world, width, height) else {
         return;
     };
@@ -240,10 +243,7 @@ fn pixels_match_core_geometry_stress() {
 /// body's colour than to any other body's; the ground grid shows under the bodies.
 #[test]
 fn lit_render_keeps_body_colours() {
-    let mut world = load("mixed");
-    for _ in 0..60 {
-        world.step();
-    }
+    let world = stepped("mixed", 60);
     let (width, height) = (320, 200);
     let Some(mut r) = renderer_or_skip(&world, width, height) else {
         return;
@@ -309,10 +309,7 @@ fn one_instanced_draw_per_shape() {
 
 #[test]
 fn instance_data_is_the_pose_in_f32() {
-    let mut world = load("mixed");
-    for _ in 0..30 {
-        world.step();
-    }
+    let world = stepped("mixed", 30);
     let Some(mut r) = renderer_or_skip(&world, 32, 32) else {
         return;
     };
@@ -366,10 +363,7 @@ fn brightness(p: [u8; 4]) -> i32 {
 /// lit is unchanged. Pixels near a shadow's edge (filtered) or a body's outline are not judged.
 #[test]
 fn ground_in_the_shadow_of_a_body_is_darker_than_open_ground() {
-    let mut world = load("mixed");
-    for _ in 0..60 {
-        world.step();
-    }
+    let world = stepped("mixed", 60);
     let size = (320, 240);
     let Some(mut r) = renderer_or_skip(&world, size.0, size.1) else {
         return;
@@ -553,10 +547,7 @@ fn asleep_bodies_are_dimmed() {
 /// walls cover the pile, hidden they leave no pixel of their colour and the bodies appear.
 #[test]
 fn hidden_fixed_bodies_leave_no_pixel_and_show_the_pile() {
-    let mut world = load("pile-60");
-    for _ in 0..100 {
-        world.step();
-    }
+    let world = stepped("pile-60", 100);
     let (width, height) = (96, 72);
     let Some(mut r) = renderer_or_skip(&world, width, height) else {
         return;
