@@ -100,7 +100,8 @@ impl Layer {
         if options.constraints {
             overlay::constraint_segments(&mut self.lines, world, &scene.constraint_groups);
         }
-        if let Some(index) = options.selected.filter(|&i| i < world.bodies.len()) {
+        let shown = |i: usize| options.fixed_bodies || !world.bodies[i].fixed;
+        if let Some(index) = (options.selected).filter(|&i| i < world.bodies.len() && shown(i)) {
             overlay::selection_outline(&mut self.lines, world, index, eye);
         }
         self.overlay_start = self.lines.len() as u32;
