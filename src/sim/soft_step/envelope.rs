@@ -77,15 +77,10 @@ pub fn principal(
     }
 }
 
-/// Solves `K x = b` in place (`x` holds `b`), overwriting `values` with the Cholesky factor
-/// `L` (`K = L L^T`) row by row; false if `K` is not positive definite. `inverse_diagonal` is
-/// scratch.
-pub fn cholesky_solve(
-    rows: &[Row],
-    values: &mut [f64],
-    x: &mut [f64],
-    inverse_diagonal: &mut Vec<f64>,
-) -> bool {
+/// Overwrites `values` with the Cholesky factor `L` of `K` (`K = L L^T`) row by row, and
+/// `inverse_diagonal` with the reciprocals of its diagonal; false if `K` is not positive
+/// definite.
+pub fn cholesky_factor(rows: &[Row], values: &mut [f64], inverse_diagonal: &mut Vec<f64>) -> bool {
     let n = rows.len();
     inverse_diagonal.clear();
     inverse_diagonal.resize(n, 0.0);
@@ -112,11 +107,18 @@ pub fn cholesky_solve(
         values[offset_i + i - first_i] = d;
         inverse_diagonal[i] = 1.0 / d;
     }
-    // L y = b by rows, then L^T x = y by columns of L^T (rows of L): both within the envelope.
+    true
+}
+
+/// Solves `K x = b` in place (`x` holds `b`) with the factor [`cholesky_factor`] left:
+/// `L y = b` by rows, then `L^T x = y` by columns of `L^T` (rows of `L`), both within the
+/// envelope.
+pub fn cholesky_substitute(rows: &[Row], factor: &[f64], inverse_diagonal: &[f64], x: &mut [f64]) {
+    let n = rows.len();
     for i in 0..n {
         let mut s = x[i];
         for p in rows[i].first..i {
-            s -= values[at(rows, i, p)] * x[p];
+            s -= factor[at(rows, i, p)] * x[p];
         }
         x[i] = s * inverse_diagonal[i];
     }
@@ -124,10 +126,9 @@ pub fn cholesky_solve(
         x[i] *= inverse_diagonal[i];
         let xi = x[i];
         for p in rows[i].first..i {
-            x[p] -= values[at(rows, i, p)] * xi;
+            x[p] -= factor[at(rows, i, p)] * xi;
         }
     }
-    true
 }
 
 #[cfg(test)]
@@ -228,7 +229,9 @@ mod tests {
             {
                 let expected = eliminate(system, b[..size].to_vec(), size);
                 let mut x = b[..size].to_vec();
-                assert!(cholesky_solve(&rows, &mut values, &mut x, &mut Vec::new()));
+                let mut inverse_diagonal = Vec::new();
+                assert!(cholesky_factor(&rows, &mut values, &mut inverse_diagonal));
+                cholesky_substitute(&rows, &values, &inverse_diagonal, &mut x);
                 for (got, want) in x.iter().zip(&expected) {
                     assert!(
                         (got - want).abs() < 1e-10 * (1.0 + want.abs()),
@@ -239,11 +242,6 @@ mod tests {
         }
         // Not positive definite: refused.
         let (rows, mut values) = envelope_of(&[1.0, 2.0, 2.0, 1.0], 2);
-        assert!(!cholesky_solve(
-            &rows,
-            &mut values,
-            &mut [1.0, 1.0],
-            &mut Vec::new()
-        ));
+        assert!(!cholesky_factor(&rows, &mut values, &mut Vec::new()));
     }
 }
