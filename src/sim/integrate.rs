@@ -45,7 +45,7 @@ pub fn integrate_pose(
         // Without spin there is nothing to turn (skipped: free fall at scale is mostly this).
         RotationIntegrator::AngularMomentum if body.angular_velocity == DVec3::ZERO => {}
         // With equal principal moments `w = I^-1 L` is constant: the exact motion is a turn at
-        // `w` (regular tetrahedra, octahedra and cubes, half of most generated scenes' bodies).
+        // `w` (regular tetrahedra, octahedra and cubes: two of the three generated shapes).
         RotationIntegrator::AngularMomentum if is_isotropic(&body.inertia) => {
             body.orientation = rotate_by(body.orientation, body.angular_velocity, dt);
         }
