@@ -47,6 +47,34 @@ fn json_summary_has_the_documented_fields() {
     assert_eq!(v["finite"], true);
 }
 
+/// A step a billion seconds long throws every body far past any sane speed: the run still ends
+/// normally, says which bodies blew up and that they were frozen, and its summary says the
+/// values were not all finite and why.
+#[test]
+fn bodies_that_blow_up_are_named_and_the_run_goes_on() {
+    let out = succeeded(tumble().args([
+        "run",
+        "pile-20",
+        "--accurate",
+        "--dt",
+        "1e9",
+        "--steps",
+        "3",
+    ]));
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(
+        stderr.contains("warning: body 4 blew up at step 2") && stderr.contains("frozen"),
+        "{stderr}"
+    );
+    assert!(
+        stdout.contains("all values finite: false (20 bodies blew up and were frozen: 4, 5,"),
+        "{stdout}"
+    );
+}
+
 #[cfg(unix)]
 #[test]
 fn trajectory_survives_ctrl_c() {

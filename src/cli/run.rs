@@ -6,6 +6,7 @@ use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
 use tumble::io::trajectory;
+use tumble::sim::quarantine::ABSURD_SPEED;
 use tumble::sim::stats::StageTimings;
 
 #[derive(Debug, Args)]
@@ -121,8 +122,9 @@ fn simulate(
         let stats = world.step();
         for &b in &stats.quarantined {
             eprintln!(
-                "warning: body {b} went non-finite at step {} and was frozen",
-                world.step_count
+                "warning: body {b} blew up at step {} (a non-finite value or a speed above {:e} \
+                 units/s) and was frozen at its last good pose",
+                world.step_count, ABSURD_SPEED
             );
         }
         summary.add_step(world, stats);
@@ -242,7 +244,26 @@ fn print_summary(s: &RunSummary) {
             s.asleep_at_end, s.bodies
         );
     }
-    println!("all values finite: {}", s.finite);
+    if s.quarantined.is_empty() {
+        println!("all values finite: {}", s.finite);
+    } else {
+        let shown: Vec<String> = s
+            .quarantined
+            .iter()
+            .take(10)
+            .map(|b| b.to_string())
+            .collect();
+        let more = if s.quarantined.len() > 10 {
+            ", ..."
+        } else {
+            ""
+        };
+        println!(
+            "all values finite: false ({} bodies blew up and were frozen: {}{more})",
+            s.quarantined.len(),
+            shown.join(", ")
+        );
+    }
     let stages: Vec<String> = s
         .stage_ms
         .iter()

@@ -778,7 +778,7 @@ fn selection_ui(ui: &mut egui::Ui, session: &Session, selected: Option<usize>) {
                 stat(
                     ui,
                     "state",
-                    RichText::new("frozen: went non-finite")
+                    RichText::new("frozen: blew up (non-finite or absurdly fast)")
                         .color(Color32::from_rgb(255, 110, 110)),
                 );
             }
