@@ -376,3 +376,34 @@ fn cli_reports_errors_and_exits_nonzero() {
         "{stderr}"
     );
 }
+
+/// A negative number given to a setting reaches the setting's own check (not the argument
+/// parser's "unexpected argument '-1'"), which names the setting, its range and the value.
+#[cfg(feature = "cli")]
+#[test]
+fn cli_names_the_setting_a_negative_value_breaks() {
+    for (flag, words) in [
+        (
+            "--dt",
+            "--dt must be a non-negative number of seconds, got -1",
+        ),
+        (
+            "--friction",
+            "--friction must be a non-negative number, got -1",
+        ),
+        ("--restitution", "--restitution must lie in [0, 1], got -1"),
+        ("--tolerance", "--tolerance must be non-negative, got -1"),
+        (
+            "--restitution-threshold",
+            "--restitution-threshold must be non-negative, got -1",
+        ),
+    ] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))
+            .args(["run", "pile-20", "--steps", "1", flag, "-1"])
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{flag}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(stderr.contains(words), "{flag}: {stderr}");
+    }
+}

@@ -18,13 +18,13 @@ pub struct SettingsArgs {
     #[arg(long, value_enum)]
     pub solver: Option<Solver>,
     /// Time step in seconds.
-    #[arg(long, value_name = "S")]
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub dt: Option<f64>,
     /// Coefficient of restitution (0 = plastic, 1 = elastic).
-    #[arg(long, value_name = "E")]
+    #[arg(long, value_name = "E", allow_negative_numbers = true)]
     pub restitution: Option<f64>,
     /// Coulomb friction coefficient (soft-step solver; the coursework has no friction).
-    #[arg(long, value_name = "MU")]
+    #[arg(long, value_name = "MU", allow_negative_numbers = true)]
     pub friction: Option<f64>,
     /// The coursework's maxIterations: the constraint loop stops once visits x M reach K, M being
     /// the number of inequality constraints (two per constraint record), so a step makes at most
@@ -32,7 +32,7 @@ pub struct SettingsArgs {
     #[arg(long, value_name = "K")]
     pub max_iterations: Option<usize>,
     /// Constraint tolerance.
-    #[arg(long, value_name = "T")]
+    #[arg(long, value_name = "T", allow_negative_numbers = true)]
     pub tolerance: Option<f64>,
     /// Start from the best setting combination found by `tumble bench accuracy`.
     #[arg(long)]
@@ -41,7 +41,7 @@ pub struct SettingsArgs {
     #[arg(long)]
     pub skip_separating_contacts: bool,
     /// Contacts closing slower than this (units/s) bounce with e = 0.
-    #[arg(long, value_name = "SPEED")]
+    #[arg(long, value_name = "SPEED", allow_negative_numbers = true)]
     pub restitution_threshold: Option<f64>,
     /// Never put resting islands to sleep (soft-step solver).
     #[arg(long)]
