@@ -407,3 +407,43 @@ fn cli_names_the_setting_a_negative_value_breaks() {
         assert!(stderr.contains(words), "{flag}: {stderr}");
     }
 }
+
+/// `bench scale` and `bench accuracy` refuse sizes no generated scene can have, no measured
+/// steps, a time cap that is not positive and time steps that are not, naming the option and
+/// the value, before running anything.
+#[cfg(feature = "cli")]
+#[test]
+fn bench_options_out_of_range_are_named() {
+    let out_dir = std::env::temp_dir().join(format!("tumble-bench-args-{}", std::process::id()));
+    for (args, words) in [
+        (
+            &["scale", "--sizes", "0"][..],
+            "--sizes: each size must be a whole number from 1 to 1000000, got 0",
+        ),
+        (
+            &["scale", "--scatter-sizes", "2000000"][..],
+            "--scatter-sizes: each size must be",
+        ),
+        (&["scale", "--steps", "0"][..], "--steps must be at least 1"),
+        (
+            &["scale", "--max-seconds", "-1"][..],
+            "--max-seconds must be a positive number of seconds, got -1",
+        ),
+        (
+            &["accuracy", "--dts", "-0.01"][..],
+            "--dts: time steps must be positive numbers of seconds, got -0.01",
+        ),
+    ] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))
+            .arg("bench")
+            .args(args)
+            .arg("--out")
+            .arg(&out_dir)
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{args:?}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(stderr.contains(words), "{args:?}: {stderr}");
+    }
+    assert!(!out_dir.exists(), "nothing written");
+}

@@ -230,10 +230,9 @@ fn record(
 
 /// Runs the sweep, writes `accuracy.csv` and one plot per scenario into `config.out`.
 pub fn run(config: &AccuracyConfig, progress: &dyn Progress) -> anyhow::Result<AccuracyReport> {
-    anyhow::ensure!(
-        config.dts.iter().all(|dt| dt.is_finite() && *dt > 0.0),
-        "time steps must be positive"
-    );
+    if let Some(dt) = config.dts.iter().find(|dt| !(dt.is_finite() && **dt > 0.0)) {
+        anyhow::bail!("--dts: time steps must be positive numbers of seconds, got {dt}");
+    }
     let (jobs, dts) = jobs(config);
     progress.start(jobs.len() as u64, "bench accuracy");
     let mut results = AccuracyResults::new();

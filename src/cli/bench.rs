@@ -39,7 +39,7 @@ pub struct ScaleArgs {
     #[arg(long, default_value_t = 20)]
     pub warmup: usize,
     /// Wall-clock cap per run in seconds: slow variants measure fewer steps.
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
     pub max_seconds: f64,
     /// Short smoke run (sizes 100 and 1000, 20 steps).
     #[arg(long)]
@@ -58,7 +58,7 @@ pub struct AccuracyArgs {
     #[arg(long, value_enum, num_args = 1.., value_delimiter = ',')]
     pub scenarios: Vec<Scenario>,
     /// Time steps to sweep.
-    #[arg(long, num_args = 1.., value_delimiter = ',', default_values_t = [0.04, 0.02, 0.01, 0.005, 0.0025])]
+    #[arg(long, num_args = 1.., value_delimiter = ',', allow_negative_numbers = true, default_values_t = [0.04, 0.02, 0.01, 0.005, 0.0025])]
     pub dts: Vec<f64>,
     /// Setting combinations to run (default: all; see the table's rows for their names).
     #[arg(long, num_args = 1.., value_delimiter = ',')]
@@ -94,12 +94,38 @@ fn parse_variant(name: &str) -> Result<Variant, String> {
     })
 }
 
+/// Sizes a generated scene can have, at least one measured step, and a positive time cap.
+fn check_scale_args(args: &ScaleArgs) -> anyhow::Result<()> {
+    use tumble::scene::MAX_GENERATED;
+    for (flag, sizes) in [
+        ("--sizes", &args.sizes),
+        ("--scatter-sizes", &args.scatter_sizes),
+    ] {
+        if let Some(n) = sizes.iter().find(|n| !(1..=MAX_GENERATED).contains(*n)) {
+            anyhow::bail!(
+                "{flag}: each size must be a whole number from 1 to {MAX_GENERATED}, got {n}"
+            );
+        }
+    }
+    if args.steps == 0 {
+        anyhow::bail!("--steps must be at least 1");
+    }
+    if !(args.max_seconds > 0.0 && args.max_seconds.is_finite()) {
+        anyhow::bail!(
+            "--max-seconds must be a positive number of seconds, got {}",
+            args.max_seconds
+        );
+    }
+    Ok(())
+}
+
 pub fn scale(args: &ScaleArgs) -> anyhow::Result<()> {
     for scene in &args.scenes {
         if !["sparse", "pile", "chain", "scatter"].contains(&scene.as_str()) {
             anyhow::bail!("unknown scene family '{scene}' (sparse, pile, chain, scatter)");
         }
     }
+    check_scale_args(args)?;
     let variants = match args.variants.is_empty() {
         true => Variant::ALL.to_vec(),
         false => args.variants.clone(),

@@ -76,7 +76,7 @@ pub fn load(
 }
 
 /// Most bodies a generated scene may have.
-const MAX_GENERATED: usize = 1_000_000;
+pub const MAX_GENERATED: usize = 1_000_000;
 
 /// `sparse-N`, `scatter-N`, `pile-N`, `chain-N`, `rope-N` or `stack-N`: a generated scene, an
 /// error naming the problem when the family is known but N is not a count from 1 to
