@@ -406,6 +406,28 @@ fn cli_names_the_setting_a_negative_value_breaks() {
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(stderr.contains(words), "{flag}: {stderr}");
     }
+    if !cfg!(feature = "viewer") {
+        return;
+    }
+    let gif = std::env::temp_dir().join(format!("tumble-negative-{}.gif", std::process::id()));
+    for (flag, words) in [
+        (
+            "--seconds",
+            "--seconds must be a non-negative number, got -1",
+        ),
+        ("--fps", "--fps must lie in (0, 1000], got -1"),
+    ] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))
+            .args(["record", "pile-20", "-o"])
+            .arg(&gif)
+            .args([flag, "-1"])
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "{flag}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(stderr.contains(words), "{flag}: {stderr}");
+        assert!(!gif.exists(), "{flag}: nothing recorded");
+    }
 }
 
 /// `bench scale` and `bench accuracy` refuse sizes no generated scene can have, no measured

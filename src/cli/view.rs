@@ -106,10 +106,20 @@ pub struct RecordArgs {
     #[arg(short, long, value_name = "OUT")]
     pub output: PathBuf,
     /// Simulated seconds to record.
-    #[arg(long, value_name = "T", default_value_t = 5.0)]
+    #[arg(
+        long,
+        value_name = "T",
+        default_value_t = 5.0,
+        allow_negative_numbers = true
+    )]
     pub seconds: f64,
     /// Frames per second of simulated time (the simulation steps at its own fixed dt).
-    #[arg(long, value_name = "F", default_value_t = 30.0)]
+    #[arg(
+        long,
+        value_name = "F",
+        default_value_t = 30.0,
+        allow_negative_numbers = true
+    )]
     pub fps: f64,
     /// Frame size [default: 1280x720, 640x360 for .gif].
     #[arg(long, value_name = "WxH", value_parser = parse_size)]

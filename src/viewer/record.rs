@@ -419,11 +419,13 @@ impl RecordOptions {
         }
         anyhow::ensure!(
             self.seconds.is_finite() && self.seconds >= 0.0,
-            "--seconds must be a non-negative number"
+            "--seconds must be a non-negative number, got {}",
+            self.seconds
         );
         anyhow::ensure!(
             self.fps.is_finite() && self.fps > 0.0 && self.fps <= 1000.0,
-            "--fps must lie in (0, 1000]"
+            "--fps must lie in (0, 1000], got {}",
+            self.fps
         );
         Ok(())
     }
