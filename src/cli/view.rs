@@ -182,6 +182,7 @@ fn layout(ghost: bool) -> tumble::viewer::Layout {
 }
 
 /// The settings of `--compare`, checked before anything opens.
+#[cfg(feature = "viewer")]
 fn compare_settings(spec: Option<&str>) -> anyhow::Result<Option<Settings>> {
     spec.map(|spec| parse_compare(spec).map_err(|e| anyhow::anyhow!("--compare '{spec}': {e}")))
         .transpose()
