@@ -377,11 +377,24 @@ fn cli_reports_errors_and_exits_nonzero() {
     );
 }
 
+/// Runs `tumble` with `args`; it must fail and say `words` on stderr.
+#[cfg(feature = "cli")]
+fn cli_fails_saying(args: &[&std::ffi::OsStr], words: &str) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(!out.status.success(), "{args:?}");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains(words), "{args:?}: {stderr}");
+}
+
 /// A negative number given to a setting reaches the setting's own check (not the argument
 /// parser's "unexpected argument '-1'"), which names the setting, its range and the value.
 #[cfg(feature = "cli")]
 #[test]
 fn cli_names_the_setting_a_negative_value_breaks() {
+    let os = |s: &'static str| std::ffi::OsStr::new(s);
     for (flag, words) in [
         (
             "--dt",
@@ -398,13 +411,8 @@ fn cli_names_the_setting_a_negative_value_breaks() {
             "--restitution-threshold must be non-negative, got -1",
         ),
     ] {
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))
-            .args(["run", "pile-20", "--steps", "1", flag, "-1"])
-            .output()
-            .unwrap();
-        assert!(!out.status.success(), "{flag}");
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(stderr.contains(words), "{flag}: {stderr}");
+        let args = ["run", "pile-20", "--steps", "1", flag, "-1"].map(os);
+        cli_fails_saying(&args, words);
     }
     if !cfg!(feature = "viewer") {
         return;
@@ -417,15 +425,15 @@ fn cli_names_the_setting_a_negative_value_breaks() {
         ),
         ("--fps", "--fps must lie in (0, 1000], got -1"),
     ] {
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))
-            .args(["record", "pile-20", "-o"])
-            .arg(&gif)
-            .args([flag, "-1"])
-            .output()
-            .unwrap();
-        assert!(!out.status.success(), "{flag}");
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(stderr.contains(words), "{flag}: {stderr}");
+        let args = [
+            os("record"),
+            os("pile-20"),
+            os("-o"),
+            gif.as_os_str(),
+            os(flag),
+            os("-1"),
+        ];
+        cli_fails_saying(&args, words);
         assert!(!gif.exists(), "{flag}: nothing recorded");
     }
 }
@@ -439,33 +447,27 @@ fn bench_options_out_of_range_are_named() {
     let out_dir = std::env::temp_dir().join(format!("tumble-bench-args-{}", std::process::id()));
     for (args, words) in [
         (
-            &["scale", "--sizes", "0"][..],
+            ["scale", "--sizes", "0"],
             "--sizes: each size must be a whole number from 1 to 1000000, got 0",
         ),
         (
-            &["scale", "--scatter-sizes", "2000000"][..],
+            ["scale", "--scatter-sizes", "2000000"],
             "--scatter-sizes: each size must be",
         ),
-        (&["scale", "--steps", "0"][..], "--steps must be at least 1"),
+        (["scale", "--steps", "0"], "--steps must be at least 1"),
         (
-            &["scale", "--max-seconds", "-1"][..],
+            ["scale", "--max-seconds", "-1"],
             "--max-seconds must be a positive number of seconds, got -1",
         ),
         (
-            &["accuracy", "--dts", "-0.01"][..],
+            ["accuracy", "--dts", "-0.01"],
             "--dts: time steps must be positive numbers of seconds, got -0.01",
         ),
     ] {
-        let out = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))
-            .arg("bench")
-            .args(args)
-            .arg("--out")
-            .arg(&out_dir)
-            .output()
-            .unwrap();
-        assert!(!out.status.success(), "{args:?}");
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(stderr.contains(words), "{args:?}: {stderr}");
+        let mut all: Vec<&std::ffi::OsStr> = vec!["bench".as_ref()];
+        all.extend(args.iter().map(std::ffi::OsStr::new));
+        all.extend(["--out".as_ref(), out_dir.as_os_str()]);
+        cli_fails_saying(&all, words);
     }
     assert!(!out_dir.exists(), "nothing written");
 }
