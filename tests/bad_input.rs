@@ -436,6 +436,9 @@ fn cli_names_the_setting_a_negative_value_breaks() {
         cli_fails_saying(&args, words);
         assert!(!gif.exists(), "{flag}: nothing recorded");
     }
+    // A camera the view cannot take is refused before a window opens (no display needed).
+    let args = ["view", "pile-20", "--camera", "foo"].map(os);
+    cli_fails_saying(&args, "--camera 'foo': invalid float literal");
 }
 
 /// `bench scale` and `bench accuracy` refuse sizes no generated scene can have, no measured

@@ -191,6 +191,12 @@ fn compare_settings(spec: Option<&str>) -> anyhow::Result<Option<Settings>> {
 #[cfg(feature = "viewer")]
 pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
     compare_settings(args.compare.as_deref())?;
+    // Checked before the window opens (the view applies it once the scene is framed).
+    if let Some(spec) = &args.camera {
+        tumble::viewer::OrbitCamera::default()
+            .apply_spec(spec)
+            .map_err(anyhow::Error::msg)?;
+    }
     let world = args.scene.load(args.settings.settings()?)?;
     let options = tumble::viewer::ViewOptions {
         scene: args.scene.scene.clone(),
