@@ -117,9 +117,6 @@ pub struct Group {
     couplings: Range<usize>,
     /// Entries of `K`'s envelope; above [`MAX_ENVELOPE`] the group is left to Gauss-Seidel.
     envelope: usize,
-    /// The group's place among the groups, and where its `K` lies in [`Setups::k`].
-    index: usize,
-    k_offset: usize,
 }
 
 impl Group {
@@ -140,46 +137,7 @@ pub struct JointBlocks {
     /// the group whose envelope reaches its column (both within the group).
     rows: Vec<Row>,
     reach: Vec<usize>,
-    setups: Setups,
     scratch: Scratch,
-}
-
-/// Each group's system as last set up (the rows' geometry and Jacobians, `K`), with the epoch
-/// of the poses it was set up at (0: never). The passes of a step that start from the same
-/// poses (a substep's relax pass and the next substep's soft pass, the last relax pass and
-/// the final pass: four of nine) take it as it is instead of setting it up again; the same
-/// inputs give the same values, so results do not change.
-#[derive(Debug, Clone, Default)]
-struct Setups {
-    epochs: Vec<u64>,
-    geometries: Vec<Geometry>,
-    jacobians: Vec<Jacobian>,
-    k: Vec<f64>,
-    /// Per group, the Cholesky factor its last velocity solve ended with.
-    factors: Vec<KeptFactor>,
-}
-
-/// The factor of a group's `K` restricted to one active set, with the epoch of the `K` it
-/// came from (0: none). A pass that starts from the poses of the last (see [`Setups`]) and
-/// holds the same rows (a chain's rods always do) solves with it instead of factoring again:
-/// the same inputs give the same factor, so results do not change.
-#[derive(Debug, Clone, Default)]
-struct KeptFactor {
-    epoch: u64,
-    active: Vec<usize>,
-    rows: Vec<Row>,
-    values: Vec<f64>,
-    inverse_diagonal: Vec<f64>,
-}
-
-/// [`Setups`] shared by the threads solving groups (each touches its own group's entries).
-struct SharedSetups<'a> {
-    epoch: u64,
-    epochs: Shared<'a, u64>,
-    geometries: Shared<'a, Geometry>,
-    jacobians: Shared<'a, Jacobian>,
-    k: Shared<'a, f64>,
-    factors: Shared<'a, KeptFactor>,
 }
 
 /// One group's system: geometry, rates and their ranges, `K`, impulses, the active set.
@@ -196,6 +154,16 @@ struct Scratch {
     side: Vec<Side>,
     active: Vec<usize>,
     x: Vec<f64>,
+    /// The Cholesky factor of `K`'s active rows and columns, by its envelope.
+    factor: Factor,
+}
+
+/// A Cholesky factor `L D L^T` kept by its envelope ([`envelope`]).
+#[derive(Debug, Clone, Default)]
+struct Factor {
+    rows: Vec<Row>,
+    values: Vec<f64>,
+    inverse_diagonal: Vec<f64>,
 }
 
 impl JointBlocks {
@@ -242,9 +210,6 @@ impl JointBlocks {
                 start = k;
             }
         }
-        let count = blocks.records.len();
-        blocks.setups.geometries.resize(count, Geometry::default());
-        blocks.setups.jacobians.resize(count, Jacobian::default());
         blocks
     }
 
@@ -261,19 +226,11 @@ impl JointBlocks {
         envelope::reach(&rows, &mut reach);
         self.rows.extend(rows);
         self.reach.extend(reach);
-        let k_offset = self.setups.k.len();
-        if envelope <= MAX_ENVELOPE {
-            self.setups.k.resize(k_offset + envelope, 0.0);
-        }
         self.groups.push(Group {
             records,
             couplings: first..self.couplings.len(),
             envelope,
-            index: self.groups.len(),
-            k_offset,
         });
-        self.setups.epochs.push(0);
-        self.setups.factors.push(KeptFactor::default());
     }
 
     /// Whether the grouping still fits these constraints and bodies (same count of records;
@@ -489,9 +446,7 @@ impl Scratch {
                     .iter()
                     .map(|&i| if side[i] == Side::Upper { hi[i] } else { lo[i] } - u[i]),
             );
-            // SAFETY: the group's own entry (groups are disjoint).
-            let kept = unsafe { group.setups.factors.get_mut(group.index) };
-            if !kept.solve(group, (k, active), x) {
+            if !self.factor.solve(group.rows, (k, active), x) {
                 return false;
             }
             lambda.iter_mut().for_each(|l| *l = 0.0);
@@ -507,22 +462,13 @@ impl Scratch {
     }
 }
 
-impl KeptFactor {
-    /// Solves the system of `K`'s `active` rows and columns for `x` (which holds the right-hand
-    /// side), with this factor if it is of the same `K` and rows, else with a new one (kept for
-    /// the next pass when `K` has an epoch); false if that system is not positive definite.
-    fn solve(&mut self, group: GroupView, (k, active): (&[f64], &[usize]), x: &mut [f64]) -> bool {
-        let epoch = group.setups.epoch;
-        if epoch == 0 || self.epoch != epoch || self.active != active {
-            self.epoch = 0;
-            envelope::principal((group.rows, k), active, (&mut self.rows, &mut self.values));
-            let (rows, values) = (&self.rows, &mut self.values);
-            if !envelope::cholesky_factor(rows, values, &mut self.inverse_diagonal) {
-                return false;
-            }
-            self.active.clear();
-            self.active.extend_from_slice(active);
-            self.epoch = epoch;
+impl Factor {
+    /// Factors `K`'s `active` rows and columns (`K` in the layout `rows`) and solves that
+    /// system for `x`, which holds the right-hand side; false if it is not positive definite.
+    fn solve(&mut self, rows: &[Row], (k, active): (&[f64], &[usize]), x: &mut [f64]) -> bool {
+        envelope::principal((rows, k), active, (&mut self.rows, &mut self.values));
+        if !envelope::cholesky_factor(&self.rows, &mut self.values, &mut self.inverse_diagonal) {
+            return false;
         }
         envelope::cholesky_substitute(&self.rows, &self.values, &self.inverse_diagonal, x);
         true
@@ -608,13 +554,13 @@ impl JointBlocks {
     pub fn solve_velocities(
         &mut self,
         (poses, bodies): (&[RigidBody], &mut [SolverBody]),
-        (held, epoch): (&mut HeldSides, u64),
+        held: &mut HeldSides,
         inv_h: f64,
         use_bias: bool,
     ) {
         let bodies = Shared::new(bodies);
         held.fit(self.records.len());
-        self.for_each_group((&mut held.velocities, epoch), |scratch, group| {
+        self.for_each_group(&mut held.velocities, |scratch, group| {
             // SAFETY: groups share no moving body; poses are only read.
             unsafe { scratch.solve_group_velocities(group, poses, &bodies, inv_h, use_bias) };
             false
@@ -631,9 +577,7 @@ impl JointBlocks {
     ) -> bool {
         let poses = Shared::new(poses);
         held.fit(self.records.len());
-        // Epoch 0: the projection moves the poses it sets up at, so it neither keeps nor
-        // takes a setup.
-        self.for_each_group((&mut held.positions, 0), |scratch, group| {
+        self.for_each_group(&mut held.positions, |scratch, group| {
             // SAFETY: groups share no moving body, and only moving bodies' poses are written.
             unsafe { scratch.project_group(group, &poses, bodies) }
         })
@@ -644,7 +588,7 @@ impl JointBlocks {
     /// the same). True if `f` returned true for any group.
     fn for_each_group(
         &mut self,
-        (held, epoch): (&mut [Side], u64),
+        held: &mut [Side],
         f: impl Fn(&mut Scratch, GroupView) -> bool + Sync,
     ) -> bool {
         const PARALLEL_GROUPS: usize = 64;
@@ -654,18 +598,9 @@ impl JointBlocks {
             couplings,
             rows,
             reach,
-            setups,
             scratch,
         } = self;
         let held = Shared::new(held);
-        let setups = SharedSetups {
-            epoch,
-            epochs: Shared::new(&mut setups.epochs),
-            geometries: Shared::new(&mut setups.geometries),
-            jacobians: Shared::new(&mut setups.jacobians),
-            k: Shared::new(&mut setups.k),
-            factors: Shared::new(&mut setups.factors),
-        };
         let view = |g: &Group| GroupView {
             records: &records[g.records.clone()],
             couplings: &couplings[g.couplings.clone()],
@@ -674,9 +609,6 @@ impl JointBlocks {
             envelope: g.envelope,
             held: &held,
             first: g.records.start,
-            setups: &setups,
-            index: g.index,
-            k_offset: g.k_offset,
         };
         let direct = |g: &&Group| g.direct();
         if groups.len() < PARALLEL_GROUPS {
@@ -706,10 +638,6 @@ struct GroupView<'a> {
     /// The active sets of the last solves, by record of the world, and the group's first.
     held: &'a Shared<'a, Side>,
     first: usize,
-    /// The groups' last setups, this group's index and the place of its `K` among them.
-    setups: &'a SharedSetups<'a>,
-    index: usize,
-    k_offset: usize,
 }
 
 impl Scratch {
@@ -731,8 +659,7 @@ impl Scratch {
             let b = unsafe { bodies.get(i) };
             (b.inverse_mass, b.inverse_inertia)
         };
-        // SAFETY: the group's own setup entries (groups are disjoint).
-        if !unsafe { self.set_up(group, |i| &poses[i], &inverse) } {
+        if !self.set_up(group, |i| &poses[i], &inverse) {
             return;
         }
         for (i, (r, g)) in records.iter().zip(&self.geometries).enumerate() {
@@ -828,47 +755,19 @@ impl Scratch {
         true
     }
 
-    /// The group's geometry, Jacobians and `K` at the current poses: the kept setup if it was
-    /// made at this epoch, else a new one, kept for the next pass; the rates and ranges
+    /// The group's geometry, Jacobians and `K` at the current poses, the rates and ranges
     /// cleared. False if a record has no geometry.
-    ///
-    /// # Safety
-    /// No other thread touches the group's setup entries meanwhile.
-    unsafe fn set_up<'p>(
+    fn set_up<'p>(
         &mut self,
         group: GroupView,
         pose: impl Fn(usize) -> &'p RigidBody,
         inverse: &impl Fn(usize) -> (f64, DMat3),
     ) -> bool {
-        let (setups, n) = (group.setups, group.records.len());
-        let records = group.first..group.first + n;
-        let k = group.k_offset..group.k_offset + group.envelope;
-        // SAFETY: the group's own entries (caller's contract).
-        let (epoch, geometries, jacobians, kept_k) = unsafe {
-            (
-                setups.epochs.get_mut(group.index),
-                setups.geometries.slice(records.clone()),
-                setups.jacobians.slice(records),
-                setups.k.slice(k),
-            )
-        };
-        self.reset(n, group.envelope);
-        if setups.epoch != 0 && *epoch == setups.epoch {
-            self.geometries.clear();
-            self.geometries.extend_from_slice(geometries);
-            self.jacobians.clear();
-            self.jacobians.extend_from_slice(jacobians);
-            self.k.copy_from_slice(kept_k);
-            return true;
-        }
+        self.reset(group.records.len(), group.envelope);
         if !self.load_geometry(group.records, pose) {
             return false;
         }
         self.fill_matrix(group, inverse);
-        geometries.copy_from_slice(&self.geometries);
-        jacobians.copy_from_slice(&self.jacobians);
-        kept_k.copy_from_slice(&self.k);
-        *epoch = setups.epoch;
         true
     }
 
@@ -1018,9 +917,8 @@ mod tests {
     /// chain listed backwards and scrambled, a tree, a star on one body, a ladder of cycles;
     /// the chains are groups of 200 records (four times the old dense limit). After one rigid
     /// velocity pass from random velocities, every rod's ends move apart at zero rate: the
-    /// block solve is exact whatever the group's order and shape. A second pass at the same
-    /// poses (the same epoch: the kept setup and factor) from new random velocities is exact
-    /// too.
+    /// block solve is exact whatever the group's order and shape. A second pass from new
+    /// random velocities (the active sets held from the first) is exact too.
     #[test]
     fn rods_of_any_graph_end_a_pass_without_stretching() {
         let mut rng = Rng::new(11);
@@ -1058,7 +956,7 @@ mod tests {
                     s.linear_velocity = random_vector(&mut rng, 3.0);
                     s.angular_velocity = random_vector(&mut rng, 2.0);
                 }
-                blocks.solve_velocities((&bodies, &mut solver), (&mut held, 1), 50.0, false);
+                blocks.solve_velocities((&bodies, &mut solver), &mut held, 50.0, false);
                 assert_rods_hold(case, &constraints, &bodies, &solver);
             }
         }
