@@ -3,6 +3,7 @@
 //! it moves; at 100,000 bodies in contact that is most of a scene's peak memory. These helpers
 //! keep a buffer near the size of its busiest step.
 
+use rayon::prelude::*;
 use std::ops::Range;
 
 /// Clears `v` and makes room for `n` items. When it has too little, the old buffer is freed
@@ -43,6 +44,32 @@ pub fn runs<T>(mut items: &mut [T], lengths: impl Iterator<Item = usize>) -> Vec
             run
         })
         .collect()
+}
+
+/// Below this many items a pass runs on the calling thread: rayon's machinery costs more than
+/// a few bodies' work (listing a chain's 18 bodies through it made two-chain's step 4 % slower).
+const PARALLEL_ITEMS: usize = 4096;
+
+/// Replaces `out` with the indices `i < n` for which `keep(i)`, ascending; on all threads
+/// when `n` is large.
+pub fn indices_where(n: usize, keep: impl Fn(usize) -> bool + Sync + Send, out: &mut Vec<usize>) {
+    out.clear();
+    if n < PARALLEL_ITEMS {
+        out.extend((0..n).filter(|&i| keep(i)));
+    } else {
+        let all = (0..n).into_par_iter().with_min_len(PARALLEL_ITEMS);
+        out.par_extend(all.filter(|&i| keep(i)));
+    }
+}
+
+/// Replaces `out` with `f(i)` for `i < n`, in order; on all threads when `n` is large.
+pub fn map_indices<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync + Send, out: &mut Vec<T>) {
+    out.clear();
+    if n < PARALLEL_ITEMS {
+        out.extend((0..n).map(f));
+    } else {
+        out.par_extend((0..n).into_par_iter().with_min_len(PARALLEL_ITEMS).map(f));
+    }
 }
 
 #[cfg(test)]
