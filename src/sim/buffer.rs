@@ -75,7 +75,27 @@ pub fn map_indices<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync + Send, out:
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rayon::prelude::*;
+
+    /// Both sides of the threshold give what the serial filter and map give, in order.
+    #[test]
+    fn index_lists_match_the_serial_ones_on_both_sides_of_the_threshold() {
+        for n in [
+            0,
+            1,
+            100,
+            PARALLEL_ITEMS - 1,
+            PARALLEL_ITEMS,
+            3 * PARALLEL_ITEMS + 17,
+        ] {
+            let keep = |i: usize| i % 7 == 3 || i.is_multiple_of(11);
+            let mut out = vec![usize::MAX];
+            indices_where(n, keep, &mut out);
+            assert_eq!(out, (0..n).filter(|&i| keep(i)).collect::<Vec<_>>(), "{n}");
+            let mut flags = vec![true; 5];
+            map_indices(n, keep, &mut flags);
+            assert_eq!(flags, (0..n).map(keep).collect::<Vec<_>>(), "{n}");
+        }
+    }
 
     #[test]
     fn blocks_keep_the_order_and_skip_nothing() {

@@ -158,7 +158,8 @@ struct Scratch {
     factor: Factor,
 }
 
-/// A Cholesky factor `L D L^T` kept by its envelope ([`envelope`]).
+/// A Cholesky factor `L` (`K = L L^T`) kept by its envelope ([`envelope`]), with the
+/// reciprocals of its diagonal.
 #[derive(Debug, Clone, Default)]
 struct Factor {
     rows: Vec<Row>,
