@@ -16,12 +16,19 @@ use parry3d_f64::math::Pose;
 use parry3d_f64::query::ContactManifold;
 use parry3d_f64::query::details::{contact_manifold_cuboid_cuboid, contact_manifold_pfm_pfm};
 use parry3d_f64::shape::Cuboid;
+use smallvec::{SmallVec, smallvec};
 
 /// Index standing for the ground plane in a manifold's `body1`.
 pub const GROUND: usize = usize::MAX;
 
 /// Most points a manifold keeps.
 pub const MAX_POINTS: usize = 4;
+
+/// A manifold's points before the reduction, on the stack up to eight (a box face clipped
+/// against another, or a box's lower face near the ground). On the heap they were a third of
+/// the narrow phase's allocations, and on two threads the allocator's lock made the threads
+/// wait on each other (pile-10000 `--accurate`, 250 steps on two threads: 11.6 -> 11.1 s).
+type Candidates = SmallVec<[ManifoldPoint; 8]>;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ManifoldPoint {
@@ -177,7 +184,7 @@ fn from_parry(
     if normal == DVec3::ZERO || !normal.is_finite() {
         return None;
     }
-    let points: Vec<ManifoldPoint> = found
+    let points: Candidates = found
         .points
         .iter()
         .filter(|p| p.dist <= prediction && p.dist.is_finite())
@@ -205,7 +212,7 @@ fn from_parry(
 /// the deepest feature is a vertex it is one of them again. Kept twice, the point would be
 /// warm-started twice from last step's impulse there (the nearest-point match) and push the
 /// bodies apart: resting piles jittered at 0.07 units/s.
-fn without_repeated_gjk_point(mut points: Vec<ManifoldPoint>) -> Vec<ManifoldPoint> {
+fn without_repeated_gjk_point(mut points: Candidates) -> Candidates {
     const SAME_POINT: f64 = 1e-6;
     let Some(k) = points.iter().position(|p| p.key == 0) else {
         return points;
@@ -228,7 +235,7 @@ pub fn ground_manifold(
     shape: &Shape,
     prediction: f64,
 ) -> Option<Manifold> {
-    let points: Vec<ManifoldPoint> = shape
+    let points: Candidates = shape
         .hull
         .points()
         .iter()
@@ -248,7 +255,7 @@ pub fn ground_manifold(
 /// At most [`MAX_POINTS`] of `points` that keep the patch's extent: the deepest, the one
 /// farthest from it, the one spanning the largest triangle with those two, and the one lying
 /// farthest outside that triangle (the reduction of Box2D and Rapier, in 3D).
-fn reduce(mut points: Vec<ManifoldPoint>, normal: DVec3) -> Vec<ManifoldPoint> {
+fn reduce(mut points: Candidates, normal: DVec3) -> Candidates {
     if points.len() <= MAX_POINTS {
         return points;
     }
@@ -268,7 +275,7 @@ fn reduce(mut points: Vec<ManifoldPoint>, normal: DVec3) -> Vec<ManifoldPoint> {
             .fold(f64::INFINITY, f64::min)
     };
     let d = argmax(&points, |p| -outside(p));
-    let mut kept = vec![a, b, c];
+    let mut kept: Candidates = smallvec![a, b, c];
     if outside(&points[d]) < 0.0 {
         kept.push(points[d]);
     }
@@ -340,7 +347,7 @@ mod tests {
     #[test]
     fn reduction_keeps_the_deepest_and_the_corners() {
         // A 24-gon cap seen from below with one point slightly deeper.
-        let mut points: Vec<ManifoldPoint> = (0..24)
+        let mut points: Candidates = (0..24)
             .map(|k| {
                 let t = k as f64 * std::f64::consts::TAU / 24.0;
                 point(t.cos(), t.sin(), -0.01)
