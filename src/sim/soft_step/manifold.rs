@@ -25,9 +25,9 @@ pub const GROUND: usize = usize::MAX;
 pub const MAX_POINTS: usize = 4;
 
 /// A manifold's points before the reduction, on the stack up to eight (a box face clipped
-/// against another, or a box's lower face near the ground). On the heap they were a third of
-/// the narrow phase's allocations, and on two threads the allocator's lock made the threads
-/// wait on each other (pile-10000 `--accurate`, 250 steps on two threads: 11.6 -> 11.1 s).
+/// against another, or a box's lower face near the ground). On the heap, one or two vectors a
+/// manifold, made on one thread and freed on another, they made the threads wait on each other
+/// at the allocator's lock (pile-10000 `--accurate`, 250 steps on two threads: 11.6 -> 11.1 s).
 type Candidates = SmallVec<[ManifoldPoint; 8]>;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
