@@ -46,9 +46,8 @@ unsafe impl GlobalAlloc for CountingAlloc {
                 let grown = new_size - layout.size();
                 raise_peak(CURRENT.0.fetch_add(grown, Ordering::Relaxed) + grown);
             } else {
-                CURRENT
-                    .0
-                    .fetch_sub(layout.size() - new_size, Ordering::Relaxed);
+                let shrunk = layout.size() - new_size;
+                CURRENT.0.fetch_sub(shrunk, Ordering::Relaxed);
             }
         }
         p
