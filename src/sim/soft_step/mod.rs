@@ -180,8 +180,6 @@ impl Substeps {
                 softness: Softness::new(contact_hertz, CONTACT_DAMPING_RATIO, h),
                 static_softness: Softness::new(2.0 * contact_hertz, CONTACT_DAMPING_RATIO, h),
                 friction: ctx.settings.friction,
-                restitution: ctx.settings.restitution,
-                restitution_threshold: ctx.settings.restitution_threshold,
                 gravity: ctx.settings.gravity,
             },
         })
@@ -542,9 +540,8 @@ impl SoftStep {
             &w.colours,
             (&mut w.contacts, &mut w.points),
             &mut w.bodies,
-            inv_h,
-            pass,
-            MAX_PUSH_SPEED,
+            &substeps.contact,
+            (inv_h, pass, MAX_PUSH_SPEED),
         );
     }
 
@@ -577,8 +574,12 @@ impl SoftStep {
         for &i in &w.solved {
             w.before_restitution[i] = (w.bodies[i].linear_velocity, w.bodies[i].angular_velocity);
         }
-        let bouncing =
-            restitution::apply(&w.colours, &mut w.contacts, &mut w.points, &mut w.bodies);
+        let bouncing = restitution::apply(
+            &w.colours,
+            (&mut w.contacts, &mut w.points),
+            &mut w.bodies,
+            (ctx.settings.restitution, ctx.settings.restitution_threshold),
+        );
         let rule = restitution::EnergyRule {
             restitution: ctx.settings.restitution,
             friction: ctx.settings.friction,

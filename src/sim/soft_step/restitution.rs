@@ -23,17 +23,17 @@ use rayon::prelude::*;
 pub const ITERATIONS: usize = 8;
 
 /// Drives every bouncing point's normal velocity to its target ([`ITERATIONS`] passes over the
-/// manifolds that have one: in a pile at rest, none), colour by colour like the other passes.
-/// Returns the indices of those manifolds' constraints.
+/// manifolds that have one: in a pile at rest, none), colour by colour like the other passes;
+/// `restitution` applies to impacts faster than `threshold`. Returns the indices of those
+/// manifolds' constraints.
 pub fn apply(
     colours: &Colours,
-    constraints: &mut [ContactConstraint],
-    points: &mut [ContactPoint],
+    (constraints, points): (&mut [ContactConstraint], &mut [ContactPoint]),
     bodies: &mut [SolverBody],
+    (restitution, threshold): (f64, f64),
 ) -> Vec<u32> {
-    let bounces = |c: &ContactConstraint, p: &ContactPoint| {
-        let threshold = c.restitution_threshold;
-        c.restitution > 0.0
+    let bounces = |p: &ContactPoint| {
+        restitution > 0.0
             && p.impact_energy > 0.5 * threshold * threshold
             && p.max_normal_impulse != 0.0
     };
@@ -43,9 +43,7 @@ pub fn apply(
         .with_min_len(1024)
         .filter(|&k| {
             let c = &view.0[k];
-            view.1[c.first..c.first + c.count]
-                .iter()
-                .any(|p| bounces(c, p))
+            view.1[c.points()].iter().any(bounces)
         })
         .map(|k| k as u32)
         .collect();
@@ -56,11 +54,11 @@ pub fn apply(
         let (selected, contacts) = (Some(&bouncing[..]), (&mut *constraints, &mut *points));
         for_each_contact_in(colours, selected, contacts, bodies, |c, points, b1, b2| {
             let n = c.normal;
-            for p in points.iter_mut().filter(|p| bounces(c, p)) {
+            for p in points.iter_mut().filter(|p| bounces(p)) {
                 let moved = b2.point_displacement(p.r2) - b1.point_displacement(p.r1);
                 let s = p.separation + n.dot(moved);
                 let target =
-                    bounce_velocity(p.impact_energy, c.restitution, s, c.normal_acceleration);
+                    bounce_velocity(p.impact_energy, restitution, s, c.normal_acceleration);
                 let vn = p.along_normal.velocity(n, b1, b2);
                 let impulse = -p.normal_mass * (vn - target);
                 // The restitution impulse may take back what it gave but never pull.
@@ -202,7 +200,7 @@ fn bouncing_groups(contacts: &Contacts, poses: &[RigidBody]) -> Vec<Vec<usize>> 
     let bounced: Vec<u32> = (bouncing.iter().copied())
         .filter(|&k| {
             let c = &constraints[k as usize];
-            points[c.first..c.first + c.count]
+            points[c.points()]
                 .iter()
                 .any(|p| p.restitution_impulse != 0.0)
         })
