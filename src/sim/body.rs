@@ -37,19 +37,6 @@ pub struct RigidBody {
     pub inverse_inertia: DMat3,
 }
 
-/// The part of a body that stepping changes; the rest (shape, masses, inertia, fixed) is set
-/// when the body is made. A quarter of a [`RigidBody`]'s bytes: what a world keeps to reset.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Motion {
-    position: DVec3,
-    orientation: DQuat,
-    linear_velocity: DVec3,
-    angular_velocity: DVec3,
-    sleep_time: f64,
-    quarantined: bool,
-    asleep: bool,
-}
-
 impl RigidBody {
     /// A body of `density` on a shape of `volume` and unit-density inertia `unit_inertia`.
     pub fn new(
@@ -195,28 +182,6 @@ impl RigidBody {
         0.5 * self.mass * self.linear_velocity.length_squared()
             + 0.5 * w.dot(self.world_inertia() * w)
             - self.mass * gravity.dot(self.position)
-    }
-
-    pub fn motion(&self) -> Motion {
-        Motion {
-            position: self.position,
-            orientation: self.orientation,
-            linear_velocity: self.linear_velocity,
-            angular_velocity: self.angular_velocity,
-            sleep_time: self.sleep_time,
-            quarantined: self.quarantined,
-            asleep: self.asleep,
-        }
-    }
-
-    pub fn set_motion(&mut self, m: &Motion) {
-        self.position = m.position;
-        self.orientation = m.orientation;
-        self.linear_velocity = m.linear_velocity;
-        self.angular_velocity = m.angular_velocity;
-        self.sleep_time = m.sleep_time;
-        self.quarantined = m.quarantined;
-        self.asleep = m.asleep;
     }
 }
 

@@ -2,7 +2,7 @@
 //! them with [`World::step`], which reads as the list of its stages.
 
 use super::aabb::{Aabb, body_aabb};
-use super::body::{Motion, RigidBody, any_awake, may_collide};
+use super::body::{RigidBody, any_awake, may_collide};
 use super::broad_phase::BroadPhase;
 use super::constraint::DistanceConstraint;
 use super::coursework::contact_stage::{
@@ -45,8 +45,6 @@ pub struct World {
     contact_stage: ContactStage,
     soft_step: SoftStep,
     quarantine: Quarantine,
-    /// What [`World::reset`] puts back.
-    initial_motion: Vec<Motion>,
 }
 
 impl World {
@@ -67,7 +65,6 @@ impl World {
             quarantine: Quarantine::new(&bodies),
             contact_stage: ContactStage::default(),
             soft_step: SoftStep::default(),
-            initial_motion: bodies.iter().map(RigidBody::motion).collect(),
             shapes,
             shape_names,
             bodies,
@@ -79,17 +76,6 @@ impl World {
             grab: None,
             constraints_by_body,
         }
-    }
-
-    /// Back to the state the world was created in (settings are kept).
-    pub fn reset(&mut self) {
-        for (body, motion) in self.bodies.iter_mut().zip(&self.initial_motion) {
-            body.set_motion(motion);
-        }
-        self.quarantine = Quarantine::new(&self.bodies);
-        self.soft_step = SoftStep::default();
-        self.time = 0.0;
-        self.step_count = 0;
     }
 
     /// One time step by the world's solver.

@@ -7,6 +7,7 @@ use super::grab;
 use super::scene_source::SceneSource;
 use super::timeline::{self, Timeline};
 use super::watch::FileWatch;
+use crate::sim::WorldState;
 use crate::sim::stats::{StageTimings, StepStats};
 use crate::{LoadError, Settings, World};
 use glam::DVec3;
@@ -114,11 +115,15 @@ pub struct Session {
     /// Reload the scene when one of its files changes.
     pub auto_reload: bool,
     watch: FileWatch,
+    /// The scene as loaded, for reset and compare: the viewer keeps it, not the world, so a
+    /// headless run does not carry a copy of its start.
+    start: WorldState,
 }
 
 impl Session {
     pub fn new(world: World, source: SceneSource) -> Session {
         let mut session = Session {
+            start: world.snapshot(),
             lanes: vec![Lane::new(world)],
             watch: FileWatch::new(source.files()),
             source,
@@ -165,7 +170,7 @@ impl Session {
     pub fn compare(&mut self, settings: Settings) {
         self.lanes.truncate(1);
         let first = &mut self.lanes[0].world;
-        first.reset();
+        first.restore(&self.start);
         first.grab = None;
         let mut second = first.clone();
         second.settings = settings;
@@ -181,6 +186,7 @@ impl Session {
 
     /// Swaps in a newly loaded scene, keeping each world's settings and the play state.
     pub fn replace(&mut self, world: World, source: SceneSource) {
+        self.start = world.snapshot();
         let settings: Vec<Settings> = self
             .lanes
             .iter()
@@ -232,7 +238,7 @@ impl Session {
 
     pub fn reset(&mut self) {
         for lane in &mut self.lanes {
-            lane.world.reset();
+            lane.world.restore(&self.start);
         }
         self.restart_bookkeeping();
     }
