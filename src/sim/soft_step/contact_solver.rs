@@ -154,42 +154,61 @@ struct CachedPoint {
     point: DVec3,
 }
 
-/// What one manifold carries to the next step.
+/// What one manifold carries to the next step; its points are `count` of the cache's point
+/// list from `first` (a manifold has 2.3 points on average at scatter-100000: room for four in
+/// each entry took 5.5 MiB more peak heap).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct CachedManifold {
     /// The friction impulse as a world vector, so a turned tangent basis does not turn it.
     friction: DVec3,
     twist: f64,
-    points: [CachedPoint; MAX_POINTS],
-    count: usize,
+    first: u32,
+    count: u32,
 }
 
 impl CachedManifold {
-    /// What a solved manifold leaves for the next step: its impulses and point features.
-    fn new(m: &Manifold, c: &ContactConstraint, points: &[ContactPoint]) -> Self {
+    /// What a solved manifold's constraint leaves for the next step, its points from `first`.
+    fn new(c: &ContactConstraint, first: usize) -> Self {
         let (f, tangents) = (&c.friction, c.friction.tangents(c.normal));
-        let mut cached = CachedManifold {
+        CachedManifold {
             friction: f.tangent_impulse[0] * tangents[0] + f.tangent_impulse[1] * tangents[1],
             twist: f.twist_impulse,
-            points: [CachedPoint::default(); MAX_POINTS],
-            count: c.count as usize,
-        };
-        let kept = &points[c.points()];
-        for ((slot, p), mp) in cached.points.iter_mut().zip(kept).zip(m.points()) {
-            *slot = CachedPoint {
-                key: mp.key,
-                normal_impulse: p.normal_impulse,
-                point: mp.point,
-            };
+            first: first as u32,
+            count: c.count,
         }
-        cached
     }
 
+    fn points(&self) -> std::ops::Range<usize> {
+        self.first as usize..(self.first + self.count) as usize
+    }
+}
+
+/// The points a solved manifold leaves for the next step: impulses and features.
+fn cached_points<'a>(
+    m: &'a Manifold,
+    c: &ContactConstraint,
+    points: &'a [ContactPoint],
+) -> impl Iterator<Item = CachedPoint> + 'a {
+    (points[c.points()].iter().zip(m.points())).map(|(p, mp)| CachedPoint {
+        key: mp.key,
+        normal_impulse: p.normal_impulse,
+        point: mp.point,
+    })
+}
+
+/// A cached manifold as a lookup gives it: its impulses and its points.
+#[derive(Debug, Clone, Copy)]
+struct Cached<'a> {
+    manifold: &'a CachedManifold,
+    points: &'a [CachedPoint],
+}
+
+impl Cached<'_> {
     /// Last step's impulse of the point with this feature key; failing that (faces lying flush
     /// on each other are clipped into points whose features flip from step to step, and the
     /// GJK point has none), of the nearest point within `reach`.
     fn normal_impulse(&self, key: u64, point: DVec3, reach: f64) -> f64 {
-        let points = &self.points[..self.count];
+        let points = self.points;
         if key != 0
             && let Some(p) = points.iter().find(|p| p.key == key)
         {
@@ -206,19 +225,23 @@ impl CachedManifold {
 
 /// Impulses of last step's manifolds, sorted by body pair: the pairs apart from what they
 /// carry, so that a lookup's binary search runs over 16-byte keys (pile-10000: 350 KiB, in the
-/// L2 cache) instead of 232-byte entries (5 MiB), where it took half of preparing the
-/// contacts, 6 % of a one-thread step.
+/// L2 cache) instead of the entries (232 bytes each then: 5 MiB), where it took half of
+/// preparing the contacts, 6 % of a one-thread step.
 #[derive(Debug, Clone, Default)]
 pub struct ContactCache {
     pairs: Vec<(usize, usize)>,
     /// What each pair carries, at the same index.
     carried: Vec<CachedManifold>,
+    /// The entries' points: the kept entries' first, then this step's in manifold order.
+    points: Vec<CachedPoint>,
 }
 
 impl ContactCache {
-    fn lookup(&self, pair: (usize, usize)) -> Option<&CachedManifold> {
+    fn lookup(&self, pair: (usize, usize)) -> Option<Cached<'_>> {
         let k = self.pairs.binary_search(&pair).ok()?;
-        Some(&self.carried[k])
+        let manifold = &self.carried[k];
+        let points = &self.points[manifold.points()];
+        Some(Cached { manifold, points })
     }
 
     /// The body pairs remembered (body 1 may be [`GROUND`]).
@@ -232,8 +255,8 @@ impl ContactCache {
     /// No entry is sorted: this step's manifolds are ordered by a sort of their pairs alone,
     /// and the kept entries and the new ones are merged in place, each written once at its
     /// place (the number of the other list's pairs below its own, plus its index). Sorting the
-    /// 216-byte entries held a scratch buffer of up to all of them: 6.6 MiB more peak heap at
-    /// scatter-100000 with rayon's parallel sort.
+    /// entries (216 bytes each then) held a scratch buffer of up to all of them: 6.6 MiB more
+    /// peak heap at scatter-100000 with rayon's parallel sort.
     pub fn store(
         &mut self,
         manifolds: &[Manifold],
@@ -252,6 +275,7 @@ impl ContactCache {
         // A pair both collided and kept (a body fell asleep this step): the new entry wins.
         let collided = |pair: &(usize, usize)| order.binary_search_by_key(pair, |e| e.0).is_ok();
         self.retain(|pair| sleeping(pair) && !collided(&pair));
+        let firsts = self.store_points(manifolds, constraints, points);
         let (kept, total) = (self.pairs.len(), self.pairs.len() + order.len());
         self.carried.reserve_exact(order.len());
         // SAFETY: the entries are `Copy`; every place below `total` is written before the
@@ -269,15 +293,63 @@ impl ContactCache {
             .enumerate()
             .with_min_len(256)
             .for_each(|(f, &(pair, k))| {
-                let (m, c) = (&manifolds[k as usize], &constraints[k as usize]);
                 let place = f + kept_pairs.partition_point(|p| *p < pair);
-                let entry = CachedManifold::new(m, c, points);
+                let entry = CachedManifold::new(&constraints[k as usize], firsts[k as usize]);
                 // SAFETY: each new entry has a place of its own, no kept entry's.
                 unsafe { slots.write(place, std::mem::MaybeUninit::new(entry)) };
             });
         // SAFETY: all `total` places are written (see above).
         unsafe { self.carried.set_len(total) };
         merge_into(&mut self.pairs, kept, order.iter().map(|(pair, _)| *pair));
+    }
+
+    /// Moves the kept entries' points to the front of the point list and writes this step's
+    /// after them, in manifold order; gives where each manifold's points start.
+    fn store_points(
+        &mut self,
+        manifolds: &[Manifold],
+        constraints: &[ContactConstraint],
+        points: &[ContactPoint],
+    ) -> Vec<usize> {
+        // The kept entries are few (pairs with a sleeping body): copied aside, not in place.
+        let kept: Vec<CachedPoint> = (self.carried.iter())
+            .flat_map(|e| self.points[e.points()].iter().copied())
+            .collect();
+        let mut next = 0;
+        for e in self.carried.iter_mut() {
+            e.first = next;
+            next += e.count;
+        }
+        let firsts: Vec<usize> = (constraints.iter())
+            .scan(kept.len(), |next, c| {
+                let first = *next;
+                *next += c.count as usize;
+                Some(first)
+            })
+            .collect();
+        let fresh = constraints.iter().map(|c| c.count as usize).sum();
+        buffer::clear_for(&mut self.points, kept.len() + fresh);
+        self.points.extend_from_slice(&kept);
+        let mut runs = buffer::runs(
+            &mut self.points.spare_capacity_mut()[..fresh],
+            constraints.iter().map(|c| c.count as usize),
+        );
+        (manifolds, constraints, &mut runs[..])
+            .into_par_iter()
+            .with_min_len(256)
+            .for_each(|(m, c, run)| {
+                assert_eq!(
+                    run.len(),
+                    m.points().len(),
+                    "a constraint of another manifold"
+                );
+                for (slot, p) in run.iter_mut().zip(cached_points(m, c, points)) {
+                    slot.write(p);
+                }
+            });
+        // SAFETY: every run was written whole (checked: its manifold has as many points).
+        unsafe { self.points.set_len(kept.len() + fresh) };
+        firsts
     }
 
     /// Keeps the entries whose pair `keep` holds for, in order.
@@ -297,6 +369,7 @@ impl ContactCache {
     pub fn heap_bytes(&self) -> usize {
         self.pairs.capacity() * size_of::<(usize, usize)>()
             + self.carried.capacity() * size_of::<CachedManifold>()
+            + self.points.capacity() * size_of::<CachedPoint>()
     }
 
     /// Number of manifolds remembered.
@@ -406,7 +479,7 @@ fn friction_at(
     (b1, x1): (&SolverBody, Option<DVec3>),
     (b2, x2): (&SolverBody, DVec3),
     n: DVec3,
-    cached: Option<&CachedManifold>,
+    cached: Option<Cached>,
 ) -> Friction {
     let count = points.len().max(1) as f64;
     let centre = points.iter().map(|p| p.point).sum::<DVec3>() / count;
@@ -421,7 +494,7 @@ fn friction_at(
     let (t2, m2) = Direction::new(b1, r1, b2, r2, tangents[1]);
     let (twist_inv1, twist_inv2) = (b1.inverse_inertia * n, b2.inverse_inertia * n);
     let k = n.dot(twist_inv1) + n.dot(twist_inv2);
-    let warm = cached.map_or(DVec3::ZERO, |c| c.friction);
+    let warm = cached.map_or(DVec3::ZERO, |c| c.manifold.friction);
     Friction {
         tangent: tangents[0],
         along_tangents: [t1, t2],
@@ -431,7 +504,7 @@ fn friction_at(
         twist_inv2,
         twist_mass: if k > 0.0 { 1.0 / k } else { 0.0 },
         twist_radius,
-        twist_impulse: cached.map_or(0.0, |c| c.twist),
+        twist_impulse: cached.map_or(0.0, |c| c.manifold.twist),
     }
 }
 
@@ -519,7 +592,7 @@ fn manifold_constraint(
     (i, first): (usize, usize),
     ((b1, x1), (b2, x2)): ((&SolverBody, Option<DVec3>), (&SolverBody, DVec3)),
     params: &ContactParams,
-    cached: Option<&CachedManifold>,
+    cached: Option<Cached>,
 ) -> ContactConstraint {
     let n = m.normal;
     let gravity_on = |b: &SolverBody| {
@@ -804,7 +877,9 @@ mod tests {
         let poses: Vec<(DVec3, DQuat)> =
             bodies.iter().map(|b| (b.position, b.orientation)).collect();
         let mut cache = ContactCache::default();
-        let mut model: Vec<((usize, usize), CachedManifold)> = Vec::new();
+        // Each pair's friction impulse, twist impulse and points.
+        type Entry = (DVec3, f64, Vec<CachedPoint>);
+        let mut model: Vec<((usize, usize), Entry)> = Vec::new();
         for step in 0..40 {
             let count = [0, 5, 300, 900][below(4)];
             let mut pairs: Vec<(usize, usize)> = (0..count)
@@ -850,11 +925,18 @@ mod tests {
                 |(i, j): (usize, usize)| (i != GROUND && bodies[i].asleep) || bodies[j].asleep;
             model.retain(|(pair, _)| sleeping(*pair) && !pairs.contains(pair));
             let fresh = manifolds.iter().zip(&constraints);
-            model.extend(
-                fresh.map(|(m, c)| ((m.body1, m.body2), CachedManifold::new(m, c, &points))),
-            );
+            model.extend(fresh.map(|(m, c)| {
+                let e = CachedManifold::new(c, 0);
+                let points = cached_points(m, c, &points).collect();
+                ((m.body1, m.body2), (e.friction, e.twist, points))
+            }));
             model.sort_by_key(|(pair, _)| *pair);
-            let entries: Vec<_> = cache.pairs().zip(cache.carried.iter().copied()).collect();
+            let entries: Vec<_> = (cache.pairs().zip(&cache.carried))
+                .map(|(pair, e)| {
+                    let points = cache.points[e.points()].to_vec();
+                    (pair, (e.friction, e.twist, points))
+                })
+                .collect();
             assert!(entries == model, "step {step}");
         }
     }
