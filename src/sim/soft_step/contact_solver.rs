@@ -16,11 +16,13 @@ use glam::{DQuat, DVec3};
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
 
-/// One direction `d` of a contact's Jacobian, kept for the step: the angular parts `r_i x d`
-/// and the angular response `I_i^-1 (r_i x d)` to a unit impulse (the arms and inertias are
-/// those of the step's start), so a row costs a few dot products. Forming the responses where
-/// an impulse is applied instead would take 28 MiB off scatter-100000's peak heap (about a
-/// tenth), at 7-8 % of a one-thread step of pile-1000 or scatter-10000.
+/// One direction `d` of a contact's Jacobian: the angular parts `r_i x d` and the angular
+/// responses `I_i^-1 (r_i x d)` to a unit impulse (the arms and inertias are those of the
+/// step's start), so a row costs a few dot products. The step keeps only the responses
+/// ([`Responses`]) and forms the angular parts again from the arms where the row is used, the
+/// same bits (two cross products against 48 bytes a row: 17 MiB of scatter-100000's peak
+/// heap). Forming the responses there too would take about 28 MiB more, at 7-8 % of a
+/// one-thread step of pile-1000 or scatter-10000.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Direction {
     ang1: DVec3,
@@ -28,6 +30,10 @@ pub struct Direction {
     inv1: DVec3,
     inv2: DVec3,
 }
+
+/// What the step keeps of a [`Direction`]: its angular responses `I_1^-1 (r_1 x d)` and
+/// `I_2^-1 (r_2 x d)`.
+type Responses = (DVec3, DVec3);
 
 impl Direction {
     /// The direction `d` at arms `r1`, `r2`, and its effective mass (zero if nothing moves).
@@ -45,6 +51,21 @@ impl Direction {
             },
             mass,
         )
+    }
+
+    /// The direction `d` at arms `(r1, r2)` whose responses were kept.
+    #[inline]
+    fn at((r1, r2): (DVec3, DVec3), d: DVec3, (inv1, inv2): Responses) -> Self {
+        Self {
+            ang1: r1.cross(d),
+            ang2: r2.cross(d),
+            inv1,
+            inv2,
+        }
+    }
+
+    fn responses(&self) -> Responses {
+        (self.inv1, self.inv2)
     }
 
     /// Relative velocity of the points along `d` (body 2 against body 1).
@@ -69,8 +90,8 @@ pub struct ContactPoint {
     /// Arms from the centres of mass to the point, world space, at the start of the step.
     pub r1: DVec3,
     pub r2: DVec3,
-    /// The Jacobian row along the normal, and its effective mass.
-    pub along_normal: Direction,
+    /// The normal row's responses (see [`ContactPoint::along_normal`]) and effective mass.
+    normal_responses: Responses,
     pub normal_mass: f64,
     /// Separation at the start of the step (negative: penetration).
     pub separation: f64,
@@ -86,13 +107,24 @@ pub struct ContactPoint {
     pub impact_energy: f64,
 }
 
+impl ContactPoint {
+    /// The Jacobian row along the manifold's normal `n`.
+    #[inline]
+    pub fn along_normal(&self, n: DVec3) -> Direction {
+        Direction::at((self.r1, self.r2), n, self.normal_responses)
+    }
+}
+
 /// Friction of one manifold, anchored at its patch's centre. The coefficient is the step's
 /// ([`ContactParams`]), the second tangent `n x t1` ([`tangent_basis`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Friction {
     /// The first tangent.
     tangent: DVec3,
-    along_tangents: [Direction; 2],
+    /// Arms from the centres of mass to the patch centre, world space, at the step's start.
+    arms: (DVec3, DVec3),
+    /// The tangent rows' responses (see [`Friction::along_tangent`]) and effective masses.
+    tangent_responses: [Responses; 2],
     tangent_mass: [f64; 2],
     /// Accumulated tangential impulses.
     pub tangent_impulse: [f64; 2],
@@ -497,7 +529,8 @@ fn friction_at(
     let warm = cached.map_or(DVec3::ZERO, |c| c.manifold.friction);
     Friction {
         tangent: tangents[0],
-        along_tangents: [t1, t2],
+        arms: (r1, r2),
+        tangent_responses: [t1.responses(), t2.responses()],
         tangent_mass: [m1, m2],
         tangent_impulse: [warm.dot(tangents[0]), warm.dot(tangents[1])],
         twist_inv1,
@@ -539,11 +572,11 @@ pub fn prepare(
         let reach = 0.2 * c.friction.twist_radius + 1e-6;
         for (slot, mp) in run.iter_mut().zip(m.points()) {
             let (r1, r2) = (x1.map_or(DVec3::ZERO, |x| mp.point - x), mp.point - x2);
-            let (along_normal, normal_mass) = Direction::new(b1, r1, b2, r2, c.normal);
+            let (row, normal_mass) = Direction::new(b1, r1, b2, r2, c.normal);
             slot.write(ContactPoint {
                 r1,
                 r2,
-                along_normal,
+                normal_responses: row.responses(),
                 normal_mass,
                 separation: mp.separation,
                 normal_impulse: cached.map_or(0.0, |c| c.normal_impulse(mp.key, mp.point, reach)),
@@ -708,12 +741,12 @@ pub fn warm_start(
 ) {
     for_each_contact(colours, constraints, points, bodies, |c, points, b1, b2| {
         for p in points.iter() {
-            p.along_normal.apply(c.normal, p.normal_impulse, b1, b2);
+            p.along_normal(c.normal)
+                .apply(c.normal, p.normal_impulse, b1, b2);
         }
         let (f, tangents) = (&c.friction, c.friction.tangents(c.normal));
-        let rows = f.along_tangents.iter().zip(tangents).zip(f.tangent_impulse);
-        for ((row, t), impulse) in rows {
-            row.apply(t, impulse, b1, b2);
+        for (k, (t, impulse)) in tangents.into_iter().zip(f.tangent_impulse).enumerate() {
+            f.along_tangent(k, t).apply(t, impulse, b1, b2);
         }
         f.apply_twist(f.twist_impulse, b1, b2);
     });
@@ -754,13 +787,14 @@ fn solve_normals(
     // points that touch together.
     let mut approach = [0.0; MAX_POINTS];
     for (v, p) in approach.iter_mut().zip(points.iter()) {
-        *v = p.along_normal.velocity(n, b1, b2);
+        *v = p.along_normal(n).velocity(n, b1, b2);
     }
     for (p, &approach) in points.iter_mut().zip(&approach) {
         let moved = b2.point_displacement(p.r2) - b1.point_displacement(p.r1);
         let s = p.separation + n.dot(moved);
         let (bias, mass_scale, impulse_scale) = soft.coefficients(s, inv_h, use_bias, max_push);
-        let vn = p.along_normal.velocity(n, b1, b2);
+        let row = p.along_normal(n);
+        let vn = row.velocity(n, b1, b2);
         let impulse = -p.normal_mass * mass_scale * (vn + bias) - impulse_scale * p.normal_impulse;
         let total = (p.normal_impulse + impulse).max(0.0);
         let delta = total - p.normal_impulse;
@@ -773,7 +807,7 @@ fn solve_normals(
             let synchronised = approach - pass.to_synchronised(a, 1.0 / inv_h);
             p.impact_energy = p.impact_energy.max(impact_energy(s, synchronised, a));
         }
-        p.along_normal.apply(n, delta, b1, b2);
+        row.apply(n, delta, b1, b2);
     }
 }
 
@@ -783,16 +817,21 @@ impl Friction {
         [self.tangent, n.cross(self.tangent)]
     }
 
+    /// The Jacobian row along tangent `k`, `t`.
+    #[inline]
+    fn along_tangent(&self, k: usize, t: DVec3) -> Direction {
+        Direction::at(self.arms, t, self.tangent_responses[k])
+    }
+
     /// Coulomb friction at the anchor: both tangent impulses at once, clamped to the disc of
     /// radius `limit` (`mu` times the manifold's normal impulse); then the twist, clamped to
     /// the same times the patch radius.
     fn solve(&mut self, n: DVec3, limit: f64, b1: &mut SolverBody, b2: &mut SolverBody) {
         let tangents = self.tangents(n);
         let old = self.tangent_impulse;
-        let mut new = [0, 1].map(|k| {
-            let v = self.along_tangents[k].velocity(tangents[k], b1, b2);
-            old[k] - self.tangent_mass[k] * v
-        });
+        let rows = [0, 1].map(|k| self.along_tangent(k, tangents[k]));
+        let mut new =
+            [0, 1].map(|k| old[k] - self.tangent_mass[k] * rows[k].velocity(tangents[k], b1, b2));
         let length = (new[0] * new[0] + new[1] * new[1]).sqrt();
         if length > limit {
             let scale = if length > 0.0 { limit / length } else { 0.0 };
@@ -800,7 +839,7 @@ impl Friction {
         }
         self.tangent_impulse = new;
         for k in 0..2 {
-            self.along_tangents[k].apply(tangents[k], new[k] - old[k], b1, b2);
+            rows[k].apply(tangents[k], new[k] - old[k], b1, b2);
         }
         let spin = n.dot(b2.angular_velocity - b1.angular_velocity);
         let twist_limit = limit * self.twist_radius;

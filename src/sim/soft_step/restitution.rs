@@ -59,14 +59,15 @@ pub fn apply(
                 let s = p.separation + n.dot(moved);
                 let target =
                     bounce_velocity(p.impact_energy, restitution, s, c.normal_acceleration);
-                let vn = p.along_normal.velocity(n, b1, b2);
+                let row = p.along_normal(n);
+                let vn = row.velocity(n, b1, b2);
                 let impulse = -p.normal_mass * (vn - target);
                 // The restitution impulse may take back what it gave but never pull.
                 let added = (p.normal_impulse + p.restitution_impulse + impulse).max(0.0)
                     - p.normal_impulse;
                 let delta = added - p.restitution_impulse;
                 p.restitution_impulse = added;
-                p.along_normal.apply(n, delta, b1, b2);
+                row.apply(n, delta, b1, b2);
             }
         });
     }
