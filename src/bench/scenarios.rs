@@ -314,7 +314,7 @@ fn spin(s: Shape, axis: DVec3, run: &Run) -> Measured {
     let mut b = RigidBody::on_shape(&s, 0, 10.0, false, DVec3::new(0.0, 1000.0, 0.0), q0);
     let w0 = 2.0 * axis + DVec3::new(0.02, 0.02, 0.02);
     b.angular_velocity = w0;
-    let inertia = b.inertia;
+    let inertia = b.inertia.to_mat3();
     let l0 = b.world_inertia() * w0;
     let e0 = 0.5 * w0.dot(l0);
     let duration = Scenario::SpinEllipsoid.duration();

@@ -1,6 +1,7 @@
 //! Rigid bodies: the state the simulation advances and the constants it needs.
 
 use super::shape::Shape;
+use super::sym_mat3::SymMat3;
 use glam::{DMat3, DQuat, DVec3};
 
 /// The fields every stage reads come first, in two cache lines (`repr(C)` keeps the order):
@@ -32,9 +33,9 @@ pub struct RigidBody {
     pub density: f64,
     pub mass: f64,
     /// Inertia tensor about the centre of mass, body frame.
-    pub inertia: DMat3,
+    pub inertia: SymMat3,
     /// Inverse inertia tensor, body frame (the coursework's `invIT`).
-    pub inverse_inertia: DMat3,
+    pub inverse_inertia: SymMat3,
 }
 
 impl RigidBody {
@@ -69,8 +70,8 @@ impl RigidBody {
             angular_velocity: DVec3::ZERO,
             mass,
             inverse_mass,
-            inertia,
-            inverse_inertia,
+            inertia: SymMat3::from_mat3(inertia),
+            inverse_inertia: SymMat3::from_mat3(inverse_inertia),
             quarantined: false,
             asleep: false,
             sleep_time: 0.0,
@@ -127,13 +128,13 @@ impl RigidBody {
     /// World inverse inertia `R Iinv R^T` (the coursework's `get_curr_inv_IT`).
     pub fn world_inverse_inertia(&self) -> DMat3 {
         let r = self.rotation();
-        r * self.inverse_inertia * r.transpose()
+        r * self.inverse_inertia.to_mat3() * r.transpose()
     }
 
     /// World inertia `R I R^T`.
     pub fn world_inertia(&self) -> DMat3 {
         let r = self.rotation();
-        r * self.inertia * r.transpose()
+        r * self.inertia.to_mat3() * r.transpose()
     }
 
     /// A body-space point in world space: `R(q) p + COM` (the coursework's `currV`).

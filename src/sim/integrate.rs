@@ -46,7 +46,7 @@ pub fn integrate_pose(
         RotationIntegrator::AngularMomentum if body.angular_velocity == DVec3::ZERO => {}
         // With equal principal moments `w = I^-1 L` is constant: the exact motion is a turn at
         // `w` (the generated tetrahedra and octahedra: two of the three generated shapes).
-        RotationIntegrator::AngularMomentum if is_isotropic(&body.inertia) => {
+        RotationIntegrator::AngularMomentum if is_isotropic(&body.inertia.to_mat3()) => {
             body.orientation = rotate_by(body.orientation, body.angular_velocity, dt);
         }
         RotationIntegrator::AngularMomentum => {
@@ -55,7 +55,7 @@ pub fn integrate_pose(
             // then read the new angular velocity off L: |L| and L are kept exactly. Tensors are
             // applied in body frame (`q I q^-1 v`), cheaper than forming `R I R^T`.
             let q = body.orientation;
-            let momentum = q * (body.inertia * (q.inverse() * body.angular_velocity));
+            let momentum = q * (body.inertia.to_mat3() * (q.inverse() * body.angular_velocity));
             let half = rotate_by(q, body.angular_velocity, 0.5 * dt);
             let w_half = inverse_inertia_at(body, half, momentum);
             body.orientation = rotate_by(q, w_half, dt);
@@ -86,7 +86,7 @@ fn is_isotropic(inertia: &DMat3) -> bool {
 
 /// `I(q)^-1 v`: the world inverse inertia at orientation `q` applied to `v`.
 fn inverse_inertia_at(body: &RigidBody, q: DQuat, v: DVec3) -> DVec3 {
-    q * (body.inverse_inertia * (q.inverse() * v))
+    q * (body.inverse_inertia.to_mat3() * (q.inverse() * v))
 }
 
 /// `normalise(exp((0, dt/2 w)) q)` with `exp((0, theta u)) = (cos theta, sin theta u)`:
@@ -108,7 +108,7 @@ pub fn rotate_by(q: DQuat, angular_velocity: DVec3, dt: f64) -> DQuat {
 /// schemes and is stable for fast, asymmetric spins.
 fn gyroscopic_step(body: &RigidBody, dt: f64) -> DVec3 {
     let q = body.orientation;
-    let inertia = body.inertia;
+    let inertia = body.inertia.to_mat3();
     let w0 = q.inverse() * body.angular_velocity;
     let f = dt * w0.cross(inertia * w0);
     let jacobian = inertia + dt * (skew(w0) * inertia - skew(inertia * w0));

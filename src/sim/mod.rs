@@ -23,6 +23,7 @@ pub mod shape;
 pub mod soft_step;
 pub mod stats;
 pub mod step_context;
+pub mod sym_mat3;
 pub mod world;
 
 pub use body::RigidBody;
