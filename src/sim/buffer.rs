@@ -6,14 +6,16 @@
 use rayon::prelude::*;
 use std::ops::Range;
 
-/// Clears `v` and makes room for `n` items. When it has too little, the old buffer is freed
-/// before a new one with an eighth of slack is taken (its contents are gone anyway).
+/// Clears `v` and makes room for `n` items, with a thirty-second of slack when it has too
+/// little. The buffer is grown in place (`realloc` of an empty vector): the allocator moves a
+/// large block's pages (`mremap`) instead of copying them, and the pages already touched stay
+/// mapped, so only the added room is faulted in. Freeing it and taking a new one faulted in the
+/// whole buffer again at every growth, which an eighth of slack kept rare but which then came
+/// on top of the busiest step's needs.
 pub fn clear_for<T>(v: &mut Vec<T>, n: usize) {
     v.clear();
     if v.capacity() < n {
-        // Freed first: `*v = Vec::with_capacity(..)` would allocate before dropping the old.
-        *v = Vec::new();
-        v.reserve_exact(n + n / 8);
+        v.reserve_exact(n + n / 32);
     }
 }
 

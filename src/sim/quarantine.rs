@@ -11,7 +11,7 @@ pub const ABSURD_SPEED: f64 = 1e12;
 
 #[derive(Debug, Clone, Default)]
 pub struct Quarantine {
-    /// Each body's last pose known finite.
+    /// Each body's last pose known finite: the pose it begins the next step at.
     last_good: Vec<(DVec3, DQuat)>,
 }
 
@@ -20,6 +20,17 @@ impl Quarantine {
         Self {
             last_good: bodies.iter().map(|b| (b.position, b.orientation)).collect(),
         }
+    }
+
+    /// The poses the bodies begin the step at, one per body, for a solver that measures its
+    /// bodies' motion from them (the soft step, which records each body's again before it
+    /// moves it: the same pose, unless an edit between steps moved the body).
+    pub fn step_start(&mut self, bodies: &[RigidBody]) -> &mut [(DVec3, DQuat)] {
+        let known = self.last_good.len().min(bodies.len());
+        self.last_good.truncate(known);
+        let added = bodies[known..].iter().map(|b| (b.position, b.orientation));
+        self.last_good.extend(added);
+        &mut self.last_good
     }
 
     pub fn heap_bytes(&self) -> usize {

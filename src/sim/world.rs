@@ -118,6 +118,7 @@ impl World {
         let mut stats = StepStats::default();
         let mut watch = Stopwatch::new();
         let scene = Scene {
+            start: self.quarantine.step_start(&self.bodies),
             bodies: &mut self.bodies,
             shapes: &self.shapes,
             constraints: &self.constraints,

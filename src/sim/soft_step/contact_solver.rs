@@ -667,13 +667,13 @@ impl HeldImpulses {
         points: &mut [ContactPoint],
         fraction: f64,
     ) {
-        self.normal.clear();
+        buffer::clear_for(&mut self.normal, points.len());
         self.normal.extend(points.iter_mut().map(|p| {
             let held = fraction * p.normal_impulse;
             p.normal_impulse -= held;
             held
         }));
-        self.friction.clear();
+        buffer::clear_for(&mut self.friction, constraints.len());
         self.friction.extend(constraints.iter_mut().map(|c| {
             let f = &mut c.friction;
             let held = (

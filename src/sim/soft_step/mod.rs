@@ -80,8 +80,7 @@ struct Workspace {
     bodies: Vec<SolverBody>,
     /// Linear and angular velocity of each solved body before the restitution pass.
     before_restitution: Vec<(DVec3, DVec3)>,
-    /// Pose and energy of every body when the step began.
-    start: Vec<(DVec3, DQuat)>,
+    /// Energy of every body when the step began.
     start_energy: Vec<f64>,
     contacts: Vec<ContactConstraint>,
     points: Vec<ContactPoint>,
@@ -130,6 +129,11 @@ pub struct Scene<'a> {
     pub shapes: &'a [Shape],
     pub constraints: &'a [DistanceConstraint],
     pub grab: Option<&'a Grab>,
+    /// Each body's pose when the step began, one per body: the step records those of the
+    /// bodies it moves before it moves them and measures their motion from there. The pose
+    /// check's last finite poses are these same poses ([`crate::sim::quarantine`]); one buffer
+    /// serves both (5.3 MiB at 100,000 bodies).
+    pub start: &'a mut [(DVec3, DQuat)],
 }
 
 /// What a step leaves for the next one (warm-start impulses): a snapshot's share.
@@ -228,20 +232,14 @@ impl SoftStep {
         let Some(substeps) = Substeps::new(ctx) else {
             return;
         };
-        self.prepare(ctx, &scene, &substeps);
+        self.prepare(ctx, &mut scene, &substeps);
         // Velocity Verlet: half a kick of gravity, then full kicks between the substeps' drifts
         // (symplectic Euler on the half-step velocities), and the last half kick at the end, so
         // free flight under gravity is exact and the velocities kept are those of the step's end.
         let kicks = Kicks::new(ctx.settings.gravity, substeps.h);
         watch.enter(Stage::Integrate);
         let w = &mut self.work;
-        integrate_free(
-            ctx,
-            (scene.bodies, &mut w.start),
-            &w.free,
-            &substeps,
-            &kicks,
-        );
+        integrate_free(ctx, (scene.bodies, scene.start), &w.free, &substeps, &kicks);
         // The solved bodies' kicks and drifts between the substeps' passes count as Solve: a
         // clock read per switch costs more than a small scene's integration (bounce: a quarter
         // of the step).
@@ -258,7 +256,7 @@ impl SoftStep {
                 self.work.hold_back(0.5);
             }
             let last = k + 1 == substeps.count;
-            self.substep(ctx, scene.bodies, &substeps, last);
+            self.substep(ctx, (scene.bodies, scene.start), &substeps, last);
             if k == 0 {
                 self.work.release();
             }
@@ -266,7 +264,7 @@ impl SoftStep {
         self.work.kick(kicks.half);
         self.final_pass(scene.bodies, &substeps);
         watch.enter(Stage::SolveFinish);
-        self.finish(ctx, (scene.bodies, scene.constraints), stats);
+        self.finish(ctx, (scene.bodies, scene.constraints, scene.start), stats);
     }
 
     /// Wakes everything when sleeping is off or the settings changed, and the grabbed body's
@@ -423,27 +421,21 @@ impl SoftStep {
     /// Solver bodies, start poses and energies, contact constraints and joint groups. Only the
     /// entries of the bodies the solver sees are written (the free ones' start poses, which
     /// sleeping reads, are written by [`integrate_free`]): the others are never read.
-    fn prepare(&mut self, ctx: &StepContext, scene: &Scene, substeps: &Substeps) {
+    fn prepare(&mut self, ctx: &StepContext, scene: &mut Scene, substeps: &Substeps) {
         self.select_bodies(scene);
-        let (bodies, constraints) = (&*scene.bodies, scene.constraints);
+        let (bodies, constraints, start) = (&*scene.bodies, scene.constraints, &mut *scene.start);
         let work = &mut self.work;
         // New solver bodies (their world inverse inertia at this step's poses).
         let n = bodies.len();
         work.bodies.resize(n + 1, SolverBody::STATIC);
         work.bodies[n] = SolverBody::STATIC; // the ground
-        work.start.resize(n, (DVec3::ZERO, DQuat::IDENTITY));
         work.start_energy.resize(n, 0.0);
         let g = ctx.settings.gravity;
-        for_each_indexed2(
-            &work.solved,
-            &mut work.bodies,
-            &mut work.start,
-            |i, sb, start| {
-                let b = &bodies[i];
-                *sb = SolverBody::new(b);
-                *start = (b.position, b.orientation);
-            },
-        );
+        for_each_indexed2(&work.solved, &mut work.bodies, start, |i, sb, start| {
+            let b = &bodies[i];
+            *sb = SolverBody::new(b);
+            record_start(start, b);
+        });
         let energy = |i: usize, e: &mut f64| {
             let b = &bodies[i];
             *e = match b.is_awake() {
@@ -454,7 +446,7 @@ impl SoftStep {
         for_each_indexed(&work.solved, &mut work.start_energy, energy);
         contact_solver::prepare(
             &work.manifolds,
-            &work.start,
+            start,
             &work.bodies,
             &self.contacts,
             &substeps.contact,
@@ -486,7 +478,7 @@ impl SoftStep {
     fn substep(
         &mut self,
         ctx: &StepContext,
-        bodies: &mut [RigidBody],
+        (bodies, start): (&mut [RigidBody], &[(DVec3, DQuat)]),
         substeps: &Substeps,
         last: bool,
     ) {
@@ -495,13 +487,13 @@ impl SoftStep {
         contact_solver::warm_start(&w.colours, &mut w.contacts, &mut w.points, &mut w.bodies);
         self.solve_pass(bodies, substeps, Pass::Soft);
         let w = &mut self.work;
-        w.integrate_positions(ctx, bodies, substeps.h);
+        w.integrate_positions(ctx, (bodies, start), substeps.h);
         if last
             && self
                 .blocks
                 .project_positions((bodies, &w.bodies), &mut self.joint_sides)
         {
-            w.update_deltas(bodies);
+            w.update_deltas(bodies, start);
         }
         self.relax(bodies, substeps, Pass::Relax);
     }
@@ -565,7 +557,7 @@ impl SoftStep {
     fn finish(
         &mut self,
         ctx: &StepContext,
-        (bodies, constraints): (&mut [RigidBody], &[DistanceConstraint]),
+        (bodies, constraints, start): (&mut [RigidBody], &[DistanceConstraint], &[(DVec3, DQuat)]),
         stats: &mut StepStats,
     ) {
         let w = &mut self.work;
@@ -609,7 +601,7 @@ impl SoftStep {
                 &mut self.islands,
                 bodies,
                 &self.radii,
-                &w.start,
+                start,
                 constraints,
                 touching,
                 ctx.settings.time_step,
@@ -701,6 +693,15 @@ impl Kicks {
 /// flight does not depend on whether it is solved. Each one's pose before them goes to
 /// `start` (for sleeping) in the same pass: a pass of its own over 100,000 bodies took 1.7 ms
 /// of scatter-100000's step, on one thread.
+/// Records the pose body `b` begins the step at. A pose made non-finite by an edit between
+/// steps is left out: the entry keeps the last finite pose, which the pose check restores.
+#[inline]
+fn record_start(start: &mut (DVec3, DQuat), b: &RigidBody) {
+    if b.position.is_finite() && b.orientation.is_finite() {
+        *start = (b.position, b.orientation);
+    }
+}
+
 fn integrate_free(
     ctx: &StepContext,
     (bodies, start): (&mut [RigidBody], &mut [(DVec3, DQuat)]),
@@ -717,7 +718,7 @@ fn integrate_free(
         .with_min_len(512)
         .filter(|(_, free)| **free)
         .for_each(|((body, start), _)| {
-            *start = (body.position, body.orientation);
+            record_start(start, body);
             body.linear_velocity += kicks.half;
             for k in 0..substeps.count {
                 if k > 0 {
@@ -739,9 +740,13 @@ impl Workspace {
 
     /// Poses from the solved velocities (by the world's rotation integrator), and each body's
     /// displacement since the step began for the contacts' separations.
-    fn integrate_positions(&mut self, ctx: &StepContext, bodies: &mut [RigidBody], h: f64) {
+    fn integrate_positions(
+        &mut self,
+        ctx: &StepContext,
+        (bodies, start): (&mut [RigidBody], &[(DVec3, DQuat)]),
+        h: f64,
+    ) {
         let integrator = ctx.settings.rotation_integrator;
-        let start = &self.start;
         for_each_indexed2(&self.moving, bodies, &mut self.bodies, |i, body, sb| {
             let (p0, q0) = start[i];
             body.linear_velocity = sb.linear_velocity;
@@ -754,8 +759,7 @@ impl Workspace {
         });
     }
 
-    fn update_deltas(&mut self, bodies: &mut [RigidBody]) {
-        let start = &self.start;
+    fn update_deltas(&mut self, bodies: &mut [RigidBody], start: &[(DVec3, DQuat)]) {
         for_each_indexed2(&self.moving, bodies, &mut self.bodies, |i, body, sb| {
             let (p0, q0) = start[i];
             sb.delta_position = body.position - p0;
