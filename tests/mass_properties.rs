@@ -223,3 +223,46 @@ fn tetrahedron_orientation_does_not_change_mass_properties() {
         }
     }
 }
+
+/// Bodies keep their inertia tensor and its inverse as symmetric matrices (six entries), which
+/// gives them back exactly only if both are symmetric to the bit: so for every shipped mesh
+/// and every coursework mesh, at several densities.
+#[test]
+fn inertia_and_its_inverse_are_symmetric_to_the_bit() {
+    let mut meshes: Vec<(String, tumble::io::TetMesh)> = assets::all_meshes()
+        .into_iter()
+        .map(|(name, mesh)| (name.to_string(), mesh))
+        .collect();
+    if let Some(dir) = coursework_dir() {
+        for entry in std::fs::read_dir(&dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "mesh") {
+                let text = std::fs::read_to_string(&path).unwrap();
+                meshes.push((
+                    path.display().to_string(),
+                    parse_medit(&path, &text).unwrap(),
+                ));
+            }
+        }
+    }
+    assert!(meshes.len() > 3, "too few meshes: {}", meshes.len());
+    for (name, mesh) in &meshes {
+        let s = shape(mesh);
+        for density in [1.0, 0.37, 1000.0, 7.9e3] {
+            let b = RigidBody::on_shape(&s, 0, density, false, DVec3::ZERO, glam::DQuat::IDENTITY);
+            let inertia = s.unit_inertia * density;
+            assert_eq!(inertia, inertia.transpose(), "{name}: inertia");
+            assert_eq!(
+                inertia.inverse(),
+                inertia.inverse().transpose(),
+                "{name}: inverse"
+            );
+            assert_eq!(b.inertia.to_mat3(), inertia, "{name}: kept inertia");
+            assert_eq!(
+                b.inverse_inertia.to_mat3(),
+                inertia.inverse(),
+                "{name}: kept inverse"
+            );
+        }
+    }
+}
