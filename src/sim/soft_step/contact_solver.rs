@@ -785,15 +785,15 @@ fn solve_normals(
     let use_bias = pass == Pass::Soft;
     // The normal velocities before any of this manifold's impulses: the approach speeds of
     // points that touch together.
-    let mut approach = [0.0; MAX_POINTS];
-    for (v, p) in approach.iter_mut().zip(points.iter()) {
-        *v = p.along_normal(n).velocity(n, b1, b2);
+    let (mut rows, mut approach) = ([Direction::default(); MAX_POINTS], [0.0; MAX_POINTS]);
+    for ((row, v), p) in rows.iter_mut().zip(&mut approach).zip(points.iter()) {
+        *row = p.along_normal(n);
+        *v = row.velocity(n, b1, b2);
     }
-    for (p, &approach) in points.iter_mut().zip(&approach) {
+    for ((p, &approach), row) in points.iter_mut().zip(&approach).zip(&rows) {
         let moved = b2.point_displacement(p.r2) - b1.point_displacement(p.r1);
         let s = p.separation + n.dot(moved);
         let (bias, mass_scale, impulse_scale) = soft.coefficients(s, inv_h, use_bias, max_push);
-        let row = p.along_normal(n);
         let vn = row.velocity(n, b1, b2);
         let impulse = -p.normal_mass * mass_scale * (vn + bias) - impulse_scale * p.normal_impulse;
         let total = (p.normal_impulse + impulse).max(0.0);
@@ -829,9 +829,15 @@ impl Friction {
     fn solve(&mut self, n: DVec3, limit: f64, b1: &mut SolverBody, b2: &mut SolverBody) {
         let tangents = self.tangents(n);
         let old = self.tangent_impulse;
-        let rows = [0, 1].map(|k| self.along_tangent(k, tangents[k]));
-        let mut new =
-            [0, 1].map(|k| old[k] - self.tangent_mass[k] * rows[k].velocity(tangents[k], b1, b2));
+        let rows = [
+            self.along_tangent(0, tangents[0]),
+            self.along_tangent(1, tangents[1]),
+        ];
+        let (mass, t) = (self.tangent_mass, tangents);
+        let mut new = [
+            old[0] - mass[0] * rows[0].velocity(t[0], b1, b2),
+            old[1] - mass[1] * rows[1].velocity(t[1], b1, b2),
+        ];
         let length = (new[0] * new[0] + new[1] * new[1]).sqrt();
         if length > limit {
             let scale = if length > 0.0 { limit / length } else { 0.0 };
