@@ -304,6 +304,34 @@ fn injected_nan_is_quarantined_and_does_not_spread() {
     assert_eq!(world.step().quarantined, vec![other]);
 }
 
+/// A pose made non-finite between steps (an edit, not the solver) is frozen at the last finite
+/// pose the pose check saw, under both solvers (the soft step measures motion from those same
+/// poses and must not overwrite them with the bad one), and the NaN reaches no other body.
+#[test]
+fn a_pose_edited_to_nan_is_frozen_at_its_last_finite_pose() {
+    for settings in [Settings::default(), Settings::accurate()] {
+        let mut world =
+            tumble::scene::load("mixed", &tumble::ConstraintsChoice::Auto, settings).unwrap();
+        for _ in 0..30 {
+            world.step();
+        }
+        let victim = world.bodies.iter().position(|b| !b.fixed).unwrap();
+        let last = (
+            world.bodies[victim].position,
+            world.bodies[victim].orientation,
+        );
+        world.bodies[victim].position.y = f64::NAN;
+        assert_eq!(world.step().quarantined, vec![victim]);
+        let b = &world.bodies[victim];
+        assert!(b.quarantined && b.is_finite());
+        assert_eq!((b.position, b.orientation), last);
+        for _ in 0..100 {
+            assert!(world.step().quarantined.is_empty());
+        }
+        assert!(world.all_finite(), "NaN reached other bodies");
+    }
+}
+
 /// Tunnelling: a fast box thrown at a thin fixed wall. At dt = 0.04 it moves 8 units a step and
 /// skips the 1-unit wall; 8 substeps (1 unit each) catch it.
 fn thrown_at_wall(settings: Settings) -> f64 {

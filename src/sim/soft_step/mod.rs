@@ -688,11 +688,6 @@ impl Kicks {
     }
 }
 
-/// The substeps of the bodies nothing touches or holds, each on its own (in parallel): the
-/// same kicks and drifts, in the same order, as the solver gives the others, so a body's
-/// flight does not depend on whether it is solved. Each one's pose before them goes to
-/// `start` (for sleeping) in the same pass: a pass of its own over 100,000 bodies took 1.7 ms
-/// of scatter-100000's step, on one thread.
 /// Records the pose body `b` begins the step at. A pose made non-finite by an edit between
 /// steps is left out: the entry keeps the last finite pose, which the pose check restores.
 #[inline]
@@ -702,6 +697,11 @@ fn record_start(start: &mut (DVec3, DQuat), b: &RigidBody) {
     }
 }
 
+/// The substeps of the bodies nothing touches or holds, each on its own (in parallel): the
+/// same kicks and drifts, in the same order, as the solver gives the others, so a body's
+/// flight does not depend on whether it is solved. Each one's pose before them goes to
+/// `start` (for sleeping) in the same pass: a pass of its own over 100,000 bodies took 1.7 ms
+/// of scatter-100000's step, on one thread.
 fn integrate_free(
     ctx: &StepContext,
     (bodies, start): (&mut [RigidBody], &mut [(DVec3, DQuat)]),
