@@ -46,7 +46,7 @@ pub fn integrate_pose(
         RotationIntegrator::AngularMomentum if body.angular_velocity == DVec3::ZERO => {}
         // With equal principal moments `w = I^-1 L` is constant: the exact motion is a turn at
         // `w` (the generated tetrahedra and octahedra: two of the three generated shapes).
-        RotationIntegrator::AngularMomentum if is_isotropic(&body.inertia.to_mat3()) => {
+        RotationIntegrator::AngularMomentum if body.inertia.is_isotropic() => {
             body.orientation = rotate_by(body.orientation, body.angular_velocity, dt);
         }
         RotationIntegrator::AngularMomentum => {
@@ -74,14 +74,6 @@ pub fn coursework_rotate_by(q: DQuat, angular_velocity: DVec3, dt: f64) -> DQuat
         return q;
     }
     rotate_by(q, angular_velocity, dt)
-}
-
-/// Whether `inertia` is a multiple of the identity, exactly (the regular tetrahedron's and
-/// octahedron's tensors come out so; a cube's may miss by a rounding, as at side 3.7, and a near
-/// miss takes the general path, which is right for every tensor).
-fn is_isotropic(inertia: &DMat3) -> bool {
-    let d = inertia.x_axis.x;
-    *inertia == DMat3::from_diagonal(DVec3::splat(d))
 }
 
 /// `I(q)^-1 v`: the world inverse inertia at orientation `q` applied to `v`.
