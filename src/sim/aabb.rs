@@ -57,7 +57,9 @@ impl Aabb {
 pub fn body_aabb(body: &RigidBody, shape: &Shape) -> Aabb {
     let r = body.rotation();
     let abs = DMat3::from_cols(r.x_axis.abs(), r.y_axis.abs(), r.z_axis.abs());
-    let center = body.world_point(shape.local_box_center);
+    // The box centre by the same matrix (not the quaternion again): the box moves by rounding
+    // only, far inside its padding.
+    let center = r * shape.local_box_center + body.position;
     let pad =
         1e-9 * (shape.local_box_half_extents.max_element() + center.abs().max_element()) + 1e-12;
     let half = abs * shape.local_box_half_extents + DVec3::splat(pad);

@@ -48,8 +48,9 @@ impl Quarantine {
                 .with_min_len(1024)
                 .filter(|(_, (body, _))| !body.quarantined && !body.asleep)
                 .filter_map(|(index, (body, last_good))| {
-                    let absurd = body.linear_velocity.length() > ABSURD_SPEED
-                        || body.angular_velocity.length() > ABSURD_SPEED;
+                    let limit = ABSURD_SPEED * ABSURD_SPEED;
+                    let absurd = body.linear_velocity.length_squared() > limit
+                        || body.angular_velocity.length_squared() > limit;
                     if body.is_finite() && !absurd {
                         *last_good = (body.position, body.orientation);
                         return None;
