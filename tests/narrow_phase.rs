@@ -117,3 +117,64 @@ fn sat_is_the_exact_depth_gjk_epa_approaches() {
         100.0 * worst_short
     );
 }
+
+/// The oriented-box early out against parry's exact distance between the same two boxes (for a
+/// cuboid the hull is its own box): boxes that touch or overlap are never reported apart, and
+/// boxes a millionth or more apart always are, for random sizes, orientations (near-parallel
+/// edges included) and offsets around touching.
+#[test]
+fn box_test_agrees_with_the_exact_box_distance() {
+    use parry3d_f64::math::Pose;
+    use parry3d_f64::query;
+    use parry3d_f64::shape::Cuboid;
+    use tumble::sim::narrow_phase::oriented_boxes_overlap;
+    let mut rng = Rng::new(29);
+    let (mut touching, mut apart) = (0, 0);
+    for k in 0..20_000 {
+        let mut half = || {
+            DVec3::new(
+                rng.range(0.2, 2.0),
+                rng.range(0.2, 2.0),
+                rng.range(0.2, 2.0),
+            )
+        };
+        let (h1, h2) = (half(), half());
+        let (s1, s2) = (shape(&assets::cuboid(h1)), shape(&assets::cuboid(h2)));
+        // Every fourth pair has nearly parallel edges (a tilt of at most 1e-9 rad).
+        let tilt = if k % 4 == 0 { 1e-9 } else { 3.2 };
+        let (q1, q2) = (rng.tilt(tilt), rng.tilt(3.2));
+        let q2 = if k % 4 == 0 { q1 * rng.tilt(1e-9) } else { q2 };
+        let direction = DVec3::new(
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+        );
+        let reach = h1.length() + h2.length();
+        let p2 = direction.normalize_or(DVec3::X) * rng.range(0.3, 1.0) * reach;
+        let a = RigidBody::on_shape(&s1, 0, 1.0, false, DVec3::ZERO, q1);
+        let b = RigidBody::on_shape(&s2, 0, 1.0, false, p2, q2);
+        let distance = query::distance(
+            &Pose::from_parts(a.position, a.orientation),
+            &Cuboid::new(s1.local_box_half_extents),
+            &Pose::from_parts(b.position, b.orientation),
+            &Cuboid::new(s2.local_box_half_extents),
+        )
+        .unwrap()
+        .distance;
+        let overlap = oriented_boxes_overlap(&a, &s1, &b, &s2);
+        if distance == 0.0 {
+            touching += 1;
+            assert!(overlap, "pair {k}: boxes that touch reported apart");
+        } else if distance > 1e-6 {
+            apart += 1;
+            assert!(
+                !overlap,
+                "pair {k}: boxes {distance} apart reported overlapping"
+            );
+        }
+    }
+    assert!(
+        touching > 2000 && apart > 2000,
+        "{touching} touching, {apart} apart"
+    );
+}

@@ -23,8 +23,10 @@ fn pose(body: &RigidBody) -> Pose {
 
 /// Whether the bodies' oriented bounding boxes (body-space box at the current pose, padded by a
 /// relative 1e-9 against rounding) overlap, by the separating axis theorem on the 15 axes of two
-/// boxes (Gottschalk, Lin & Manocha, "OBBTree", 1996). The boxes contain the hulls, so disjoint
-/// boxes mean disjoint hulls: a cheap and exact early "no contact" before GJK.
+/// boxes in the first box's frame (Gottschalk, Lin & Manocha, "OBBTree", 1996: `R = A^T B`,
+/// its magnitudes raised by a small epsilon so that near-parallel edges, whose cross product
+/// vanishes, never separate). The boxes contain the hulls, so disjoint boxes mean disjoint
+/// hulls: a cheap and exact early "no contact" before GJK. Every test errs towards "overlap".
 pub fn oriented_boxes_overlap(
     body1: &RigidBody,
     shape1: &Shape,
@@ -35,27 +37,40 @@ pub fn oriented_boxes_overlap(
         let h = s.local_box_half_extents;
         h + DVec3::splat(1e-9 * (h.max_element() + b.position.abs().max_element()) + 1e-12)
     };
-    let (h1, h2) = (pad(shape1, body1), pad(shape2, body2));
+    let (h1, h2) = (pad(shape1, body1).to_array(), pad(shape2, body2).to_array());
     let (r1, r2) = (body1.rotation(), body2.rotation());
     let a = [r1.x_axis, r1.y_axis, r1.z_axis];
     let b = [r2.x_axis, r2.y_axis, r2.z_axis];
     let t = body2.world_point(shape2.local_box_center) - body1.world_point(shape1.local_box_center);
-    let separated_along = |axis: DVec3| {
-        let length = axis.length_squared();
-        if length < 1e-24 {
-            return false; // parallel edges: the face axes decide
+    let t = [a[0].dot(t), a[1].dot(t), a[2].dot(t)];
+    let r = a.map(|ai| b.map(|bj| ai.dot(bj)));
+    let abs_r = r.map(|row| row.map(|x| x.abs() + 1e-12));
+    let apart = |distance: f64, radii: f64| distance.abs() > radii * (1.0 + 1e-12);
+    for i in 0..3 {
+        let radius2 = h2[0] * abs_r[i][0] + h2[1] * abs_r[i][1] + h2[2] * abs_r[i][2];
+        if apart(t[i], h1[i] + radius2) {
+            return false;
         }
-        let r1 =
-            h1.x * a[0].dot(axis).abs() + h1.y * a[1].dot(axis).abs() + h1.z * a[2].dot(axis).abs();
-        let r2 =
-            h2.x * b[0].dot(axis).abs() + h2.y * b[1].dot(axis).abs() + h2.z * b[2].dot(axis).abs();
-        t.dot(axis).abs() > (r1 + r2) * (1.0 + 1e-12)
-    };
-    if a.iter().chain(b.iter()).any(|&axis| separated_along(axis)) {
-        return false;
     }
-    !a.iter()
-        .any(|&u| b.iter().any(|&v| separated_along(u.cross(v))))
+    for j in 0..3 {
+        let radius1 = h1[0] * abs_r[0][j] + h1[1] * abs_r[1][j] + h1[2] * abs_r[2][j];
+        let distance = t[0] * r[0][j] + t[1] * r[1][j] + t[2] * r[2][j];
+        if apart(distance, radius1 + h2[j]) {
+            return false;
+        }
+    }
+    for i in 0..3 {
+        let (i1, i2) = ((i + 1) % 3, (i + 2) % 3);
+        for j in 0..3 {
+            let (j1, j2) = ((j + 1) % 3, (j + 2) % 3);
+            let radius1 = h1[i1] * abs_r[i2][j] + h1[i2] * abs_r[i1][j];
+            let radius2 = h2[j1] * abs_r[i][j2] + h2[j2] * abs_r[i][j1];
+            if apart(t[i2] * r[i1][j] - t[i1] * r[i2][j], radius1 + radius2) {
+                return false;
+            }
+        }
+    }
+    true
 }
 
 /// What the narrow phase found for one pair of bodies.
