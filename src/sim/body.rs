@@ -170,6 +170,7 @@ impl RigidBody {
     /// Whether the pose and the velocities are finite. `x - x` is 0 for a finite `x` and NaN
     /// for an infinite or NaN one, so one sum tests all thirteen components without a branch
     /// each (the pose check runs this on every body every step).
+    #[allow(clippy::eq_op)] // `x - x` on purpose, see above
     pub fn is_finite(&self) -> bool {
         let (p, v, w, q) = (
             self.position,
