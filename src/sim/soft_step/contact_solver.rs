@@ -18,12 +18,11 @@ use rayon::prelude::*;
 use std::mem::MaybeUninit;
 
 /// Smallest lever of the twist friction (units): a contact at one point is a small patch of
-/// the touching surfaces, not a point. With none, a body held at two points (a tetrahedron in the groove between
-/// two others, pressed at one point by each) swings about the line through them as about a
-/// frictionless hinge, and its island never sleeps: in pile-200 at dt 0.005 one tetrahedron
-/// rocked at up to 0.25 units/s for seconds on end; in pile-10000 one kept the other 9,999
-/// awake. Torsional friction of this kind is MuJoCo's (`condim` 4) and Bullet's ("spinning
-/// friction").
+/// the touching surfaces, not a point (as MuJoCo's torsional friction and Bullet's spinning
+/// friction take it). With none, a body held at one point by each of two others swings about
+/// the line through the two points as about a frictionless hinge, the points not slipping: in
+/// pile-200 at dt 0.005 a tetrahedron in such a groove swung at up to 0.25 units/s for seconds
+/// on end, and kept its island awake.
 pub const MIN_TWIST_RADIUS: f64 = 0.01;
 
 /// One direction `d` of a contact's Jacobian: the angular parts `r_i x d` and the angular
