@@ -63,6 +63,14 @@ pub fn principal(
     keep: &[usize],
     (sub_rows, sub_values): (&mut Vec<Row>, &mut Vec<f64>),
 ) {
+    // Every row kept (a hanging chain, all links taut): the matrix itself.
+    if keep.len() == rows.len() {
+        sub_rows.clear();
+        sub_rows.extend_from_slice(rows);
+        sub_values.clear();
+        sub_values.extend_from_slice(values);
+        return;
+    }
     // Row `keep[a]` starts at the first kept row at or after its first column.
     let firsts = keep
         .iter()
@@ -215,8 +223,11 @@ mod tests {
                     "case {case}"
                 );
             }
-            let keep: Vec<usize> = (0..n).filter(|i| i % 3 != 1).collect();
             let (mut sub_rows, mut sub) = (Vec::new(), Vec::new());
+            let all: Vec<usize> = (0..n).collect();
+            principal((&rows, &values), &all, (&mut sub_rows, &mut sub));
+            assert_eq!((&sub_rows, &sub), (&rows, &values), "case {case}");
+            let keep: Vec<usize> = (0..n).filter(|i| i % 3 != 1).collect();
             principal((&rows, &values), &keep, (&mut sub_rows, &mut sub));
             let m = keep.len();
             let dense_sub: Vec<f64> = keep
