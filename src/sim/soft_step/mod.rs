@@ -159,6 +159,9 @@ struct Substeps {
     count: u32,
     h: f64,
     inv_h: f64,
+    /// Rigid passes after each substep's soft pass and at the step's end: two where the
+    /// contacts' stiffness is clamped by the substep ([`Substeps::new`]).
+    relax_passes: u32,
     joint_softness: Softness,
     contact: ContactParams,
 }
@@ -170,19 +173,24 @@ impl Substeps {
         if h <= 0.0 || !h.is_finite() {
             return None;
         }
-        // Contacts stiffer than an eighth of the substep rate ring (Box2D v3.1's clamp): under a
-        // quarter (v3.0's) a stack of five boxes at dt = 0.04 never settles, jittering by 9e-3;
-        // a sixth already rings by 6e-3. The price is sag under load, which grows with the
-        // substep: the top of a stack of ten sinks by 0.18 at dt = 0.04, 0.044 at dt = 0.02.
-        let contact_hertz = CONTACT_HERTZ.min(0.125 / h);
+        // Soft contacts are clamped to 3/16 of the substep rate, those with a static body (twice
+        // as stiff) to a quarter: static ones at half the rate ring (a stack of five at dt = 0.04
+        // jitters at 0.4 units/s). Where the clamp binds (substeps over 1/160 s: dt = 0.04 with
+        // four), a second relax pass holds a stack of five still (drift 5e-4 in 10 s awake, 2e-3
+        // with one pass). Box2D v3.1 clamps at an eighth with one relax pass: twice the sag under
+        // load (the top of a stack of ten sinks by 0.18 at dt = 0.04 that way, 0.08 this way).
+        let clamp = 0.1875 / h;
+        let contact_hertz = CONTACT_HERTZ.min(clamp);
+        let static_hertz = (2.0 * contact_hertz).min(0.25 / h);
         Some(Self {
             count,
             h,
             inv_h: 1.0 / h,
+            relax_passes: if clamp < CONTACT_HERTZ { 2 } else { 1 },
             joint_softness: Softness::new(JOINT_HERTZ.min(0.25 / h), JOINT_DAMPING_RATIO, h),
             contact: ContactParams {
                 softness: Softness::new(contact_hertz, CONTACT_DAMPING_RATIO, h),
-                static_softness: Softness::new(2.0 * contact_hertz, CONTACT_DAMPING_RATIO, h),
+                static_softness: Softness::new(static_hertz, CONTACT_DAMPING_RATIO, h),
                 friction: ctx.settings.friction,
                 gravity: ctx.settings.gravity,
             },
@@ -537,9 +545,12 @@ impl SoftStep {
         );
     }
 
-    /// A pass without position correction: the velocities made rigid.
+    /// Passes without position correction: the velocities made rigid (see
+    /// [`Substeps::relax_passes`]).
     fn relax(&mut self, bodies: &[RigidBody], substeps: &Substeps, pass: Pass) {
-        self.solve_pass(bodies, substeps, pass);
+        for _ in 0..substeps.relax_passes {
+            self.solve_pass(bodies, substeps, pass);
+        }
     }
 
     /// A rigid pass after the last half kick, warm-started with half of every accumulated
