@@ -5,7 +5,8 @@
 //!   ([`manifold`], [`contact_solver`]);
 //! - contacts with Coulomb friction and the distance constraints are solved together in
 //!   substeps: integrate velocities, warm start, a soft (biased) pass, integrate positions, a
-//!   rigid relax pass ([`contact_solver`], [`joint_solver`], [`softness`]);
+//!   rigid relax pass, two where the substep clamps the contacts' stiffness
+//!   ([`contact_solver`], [`joint_solver`], [`softness`]);
 //! - then one restitution pass that gives each bouncing point `e^2` of the energy it arrived
 //!   with, measured in the invariant of the integrator (exact apex ratios at any step).
 
@@ -174,7 +175,7 @@ impl Substeps {
             return None;
         }
         // Soft contacts are clamped to 3/16 of the substep rate, those with a static body (twice
-        // as stiff) to a quarter: static ones at half the rate ring (a stack of five at dt = 0.04
+        // as stiff) to a quarter: at half the rate these ring (a stack of five at dt = 0.04
         // jitters at 0.4 units/s). Where the clamp binds (substeps over 1/160 s: dt = 0.04 with
         // four), a second relax pass holds a stack of five still (drift 5e-4 in 10 s awake, 2e-3
         // with one pass). Box2D v3.1 clamps at an eighth with one relax pass: twice the sag under
