@@ -5,18 +5,24 @@
 use crate::sim::body::RigidBody;
 use glam::{DMat3, DQuat, DVec3};
 
+/// Laid out in this order (`repr(C)`): the contact passes read the first 112 bytes of each body
+/// they touch and never the inverse inertia (a contact keeps its angular responses), so at
+/// 100,000 bodies, out of cache, a body costs them two cache lines or three, where the compiler's
+/// order (the rotation first, the inertia between the velocities and the position change) split
+/// what they read in two runs.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[repr(C)]
 pub struct SolverBody {
     pub linear_velocity: DVec3,
     pub angular_velocity: DVec3,
     /// Zero for fixed and frozen bodies and the ground: impulses do not move them.
     pub inverse_mass: f64,
-    /// World inverse inertia at the start of the step.
-    pub inverse_inertia: DMat3,
     /// Position change since the start of the step.
     pub delta_position: DVec3,
     /// Rotation since the start of the step.
     pub delta_rotation: DQuat,
+    /// World inverse inertia at the start of the step.
+    pub inverse_inertia: DMat3,
 }
 
 impl SolverBody {
