@@ -42,8 +42,12 @@ use rayon::prelude::*;
 use softness::Softness;
 use solver_body::SolverBody;
 
-/// Contacts stiffer than this per substep rate ring (Box2D: a quarter of the substep rate).
+/// Natural frequency of the soft contacts (Box2D's default), where the substep allows it.
 const CONTACT_HERTZ: f64 = 30.0;
+/// Stiffest contacts between bodies, as a fraction of the substep rate (see [`Substeps::new`]).
+const CONTACT_RATE_FRACTION: f64 = 0.1875;
+/// Stiffest contacts with a static body, as a fraction of the substep rate.
+const STATIC_RATE_FRACTION: f64 = 0.25;
 const CONTACT_DAMPING_RATIO: f64 = 10.0;
 const JOINT_HERTZ: f64 = 60.0;
 const JOINT_DAMPING_RATIO: f64 = 2.0;
@@ -180,9 +184,9 @@ impl Substeps {
         // four), a second relax pass holds a stack of five still (drift 5e-4 in 10 s awake, 2e-3
         // with one pass). Box2D v3.1 clamps at an eighth with one relax pass: twice the sag under
         // load (the top of a stack of ten sinks by 0.18 at dt = 0.04 that way, 0.08 this way).
-        let clamp = 0.1875 / h;
+        let clamp = CONTACT_RATE_FRACTION / h;
         let contact_hertz = CONTACT_HERTZ.min(clamp);
-        let static_hertz = (2.0 * contact_hertz).min(0.25 / h);
+        let static_hertz = (2.0 * contact_hertz).min(STATIC_RATE_FRACTION / h);
         Some(Self {
             count,
             h,
