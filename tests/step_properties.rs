@@ -1,10 +1,14 @@
 //! Property test of the step: random small scenes from tumble's meshes, with random but legal
-//! states and settings, stay finite for a few hundred steps, or the step names the body that
-//! went non-finite (quarantine) and the rest stay finite.
+//! states and settings for either solver, changed halfway as the viewer's panel changes them and
+//! pulled by a grab, stay finite for a few hundred steps, or the step names the body that went
+//! non-finite (quarantine) and the rest stay finite; a snapshot restored repeats the steps
+//! after it bit for bit.
+
 use glam::{DQuat, DVec3};
 use proptest::prelude::*;
 use tumble::scene::assets;
-use tumble::sim::settings::{ConstraintSchedule, RotationIntegrator};
+use tumble::sim::grab::Grab;
+use tumble::sim::settings::{ConstraintSchedule, RotationIntegrator, Solver};
 use tumble::{RigidBody, Settings, Shape, World};
 
 #[derive(Debug, Clone)]
@@ -44,7 +48,33 @@ fn body_spec() -> impl Strategy<Value = BodySpec> {
         )
 }
 
+/// Settings of either solver: the coursework's opt-ins, and the soft step's friction, sleeping
+/// and substeps, under normal, zero or strong sideways gravity.
 fn settings() -> impl Strategy<Value = Settings> {
+    (
+        coursework_settings(),
+        any::<bool>(),
+        0.0f64..2.0,
+        any::<bool>(),
+        1u32..9,
+        0usize..3,
+    )
+        .prop_map(|(base, soft, friction, sleep, substeps, gravity)| {
+            if !soft {
+                return base;
+            }
+            Settings {
+                solver: Solver::SoftStep,
+                friction,
+                sleep,
+                substeps,
+                gravity: [base.gravity, DVec3::ZERO, DVec3::new(40.0, -9.8, -25.0)][gravity],
+                ..base
+            }
+        })
+}
+
+fn coursework_settings() -> impl Strategy<Value = Settings> {
     (
         1e-4f64..0.08,
         0.0f64..=1.0,
@@ -94,7 +124,13 @@ fn settings() -> impl Strategy<Value = Settings> {
         )
 }
 
-fn build(specs: &[BodySpec], links: &[(usize, usize, f64, f64)], settings: Settings) -> World {
+/// The scene of `specs` and `links`, its positions scaled by `spread` (small: a heap of bodies
+/// inside each other).
+fn build(
+    (specs, spread): (&[BodySpec], f64),
+    links: &[(usize, usize, f64, f64)],
+    settings: Settings,
+) -> World {
     let shapes: Vec<Shape> = assets::all_meshes()
         .iter()
         .map(|(_, m)| Shape::from_tet_mesh(m).unwrap())
@@ -114,7 +150,7 @@ fn build(specs: &[BodySpec], links: &[(usize, usize, f64, f64)], settings: Setti
                 s.mesh,
                 10f64.powf(s.log_density),
                 s.fixed,
-                DVec3::from(s.position),
+                DVec3::from(s.position) * spread,
                 q,
             );
             if !b.fixed {
@@ -150,25 +186,102 @@ fn build(specs: &[BodySpec], links: &[(usize, usize, f64, f64)], settings: Setti
     )
 }
 
+/// A grab of body `body % n` at a point off its centre, pulled towards `target`.
+fn grab_of(world: &World, (body, target, hertz): (usize, [f64; 3], f64)) -> Grab {
+    let body = body % world.bodies.len();
+    Grab {
+        body,
+        local_point: DVec3::new(0.3, 0.2, -0.1),
+        target: DVec3::from(target),
+        hertz,
+    }
+}
+
+/// Runs `world` 300 steps: the first half with its settings, the second with `later` and the
+/// grab (if any) pulling, as a viewer user would. Returns the bodies reported quarantined.
+fn run(world: &mut World, later: &Settings, grab: Option<(usize, [f64; 3], f64)>) -> Vec<usize> {
+    let mut quarantined = Vec::new();
+    for k in 0..300 {
+        if k == 150 {
+            world.settings = later.clone();
+            world.grab = grab.map(|g| grab_of(world, g));
+        }
+        quarantined.extend(world.step().quarantined);
+    }
+    quarantined
+}
+
+/// The bits of every body's state.
+fn state_bits(world: &World) -> Vec<u64> {
+    world
+        .bodies
+        .iter()
+        .flat_map(|b| {
+            let q = b.orientation;
+            [b.position, b.linear_velocity, b.angular_velocity]
+                .into_iter()
+                .flat_map(|v| v.to_array())
+                .chain([q.x, q.y, q.z, q.w])
+                .map(f64::to_bits)
+                .chain([b.asleep as u64, b.quarantined as u64])
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+fn grab_strategy() -> impl Strategy<Value = Option<(usize, [f64; 3], f64)>> {
+    prop::option::weighted(
+        0.4,
+        (
+            0usize..12,
+            [-40.0f64..40.0, -5.0f64..40.0, -40.0f64..40.0],
+            0.1f64..100.0,
+        ),
+    )
+}
+
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 48, failure_persistence: None, .. ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 256, failure_persistence: None, .. ProptestConfig::default() })]
     #[test]
     fn random_scenes_stay_finite(
         specs in prop::collection::vec(body_spec(), 1..12),
         links in prop::collection::vec((0usize..12, 0usize..12, 0.0f64..1.0, 0.0f64..1.0), 0..6),
-        settings in settings(),
+        (first, later) in (settings(), settings()),
+        grab in grab_strategy(),
+        spread in prop::sample::select(vec![1.0, 0.1]),
     ) {
-        let mut world = build(&specs, &links, settings);
-        let mut quarantined = Vec::new();
-        for _ in 0..300 {
-            let stats = world.step();
-            quarantined.extend(stats.quarantined);
-        }
+        let mut world = build((&specs, spread), &links, first);
+        let quarantined = run(&mut world, &later, grab);
         // Every body is finite: either it stayed so, or it was frozen at its last finite state
         // and reported.
         prop_assert!(world.all_finite());
         for (i, b) in world.bodies.iter().enumerate() {
             prop_assert_eq!(b.quarantined, quarantined.contains(&i));
         }
+    }
+
+    /// A snapshot taken mid-run and restored repeats the steps after it bit for bit: it holds
+    /// everything a step depends on (warm starts, sleep timers, quarantine), whatever the scene,
+    /// the solver and what changes after it.
+    #[test]
+    fn restoring_a_snapshot_repeats_the_steps(
+        specs in prop::collection::vec(body_spec(), 2..12),
+        links in prop::collection::vec((0usize..12, 0usize..12, 0.0f64..1.0, 0.0f64..1.0), 0..6),
+        (first, later) in (settings(), settings()),
+        grab in grab_strategy(),
+        spread in prop::sample::select(vec![1.0, 0.1]),
+    ) {
+        let mut world = build((&specs, spread), &links, first.clone());
+        for _ in 0..100 {
+            world.step();
+        }
+        let snapshot = world.snapshot();
+        run(&mut world, &later, grab);
+        let once = state_bits(&world);
+        world.restore(&snapshot);
+        world.settings = first;
+        world.grab = None;
+        run(&mut world, &later, grab);
+        prop_assert!(once == state_bits(&world));
     }
 }
