@@ -21,7 +21,7 @@ fn run_finite(world: &mut World, steps: usize, what: &str) {
 }
 
 #[test]
-fn every_coursework_scene_loads_and_runs_500_steps() {
+fn every_coursework_scene_loads_and_runs_500_steps_with_either_solver() {
     let Some(dir) = coursework_dir() else { return };
     let mut scenes: Vec<_> = std::fs::read_dir(&dir)
         .unwrap()
@@ -34,12 +34,18 @@ fn every_coursework_scene_loads_and_runs_500_steps() {
         "expected the coursework's scenes in {}",
         dir.display()
     );
-    for scene in scenes {
-        let mut world =
-            tumble::scene::load_file(&scene, &ConstraintsChoice::Auto, Settings::default())
-                .unwrap_or_else(|e| panic!("{e}"));
-        let name = scene.file_name().unwrap().to_string_lossy().into_owned();
-        let constraints_file = tumble::scene::default_constraints_path(&scene).unwrap();
+    for (scene, settings) in scenes
+        .iter()
+        .flat_map(|s| [Settings::default(), Settings::accurate()].map(|settings| (s, settings)))
+    {
+        let solver = settings.solver;
+        let mut world = tumble::scene::load_file(scene, &ConstraintsChoice::Auto, settings)
+            .unwrap_or_else(|e| panic!("{e}"));
+        let name = format!(
+            "{} ({solver:?})",
+            scene.file_name().unwrap().to_string_lossy()
+        );
+        let constraints_file = tumble::scene::default_constraints_path(scene).unwrap();
         if constraints_file.exists() {
             let text = std::fs::read_to_string(&constraints_file).unwrap();
             let records: usize = text.split_whitespace().next().unwrap().parse().unwrap();
