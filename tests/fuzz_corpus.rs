@@ -1,6 +1,8 @@
 //! Stable-Rust replay of the fuzzing corpus (tests/corpus/<target>/), plus a deterministic
 //! mutation run over it, so CI keeps every interesting input that `cargo fuzz` found. Each input
-//! must load or fail with an error; none may panic, hang or allocate by an unchecked count.
+//! must load or fail with an error; none may panic, hang or allocate by an unchecked count. The
+//! `world` target's inputs are scenes and settings in bytes: each must step without a panic and
+//! stay finite or report the bodies it froze.
 mod common;
 
 use std::path::Path;
@@ -83,6 +85,25 @@ fn every_reader_survives_its_corpus_and_mutations_of_it() {
                     String::from_utf8_lossy(&mutated)
                 );
             }
+        }
+    }
+}
+
+#[test]
+fn the_world_target_survives_its_corpus_and_mutations_of_it() {
+    let inputs = corpus("world");
+    assert!(!inputs.is_empty(), "no corpus for world");
+    let mut rng = Rng::new(0x30D1D);
+    for (name, bytes) in &inputs {
+        let ok = std::panic::catch_unwind(|| tumble::scene::fuzzing::world(bytes));
+        assert!(ok.is_ok(), "world: panic on corpus file {name}");
+        for k in 0..20 {
+            let mutated = mutate(bytes, &mut rng);
+            let ok = std::panic::catch_unwind(|| tumble::scene::fuzzing::world(&mutated));
+            assert!(
+                ok.is_ok(),
+                "world: panic on mutation {k} of {name}: {mutated:?}"
+            );
         }
     }
 }

@@ -6,6 +6,7 @@
 pub mod assets;
 mod build;
 mod files;
+pub mod fuzzing;
 pub mod generate;
 
 pub use files::embedded_file;
