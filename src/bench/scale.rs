@@ -155,9 +155,32 @@ pub struct Measurement {
     pub steps_measured: usize,
     /// Bodies asleep after the last step.
     pub asleep_at_end: usize,
+    /// Identical runs measured ([`repeat_short_runs`]): each step's time is its fastest.
+    pub runs: usize,
     /// Wall seconds of each measured step, for ratios over the steps two runs share.
     #[serde(skip)]
     pub step_seconds: Vec<f64>,
+}
+
+impl Measurement {
+    /// Folds in another run of the same job: each step's fastest time (the runs are identical,
+    /// the engines deterministic), the stage means of the faster run, the larger peak.
+    fn keep_fastest(&mut self, again: Measurement) {
+        let shared = self.step_seconds.len().min(again.step_seconds.len());
+        let total = |m: &Measurement| m.step_seconds[..shared].iter().sum::<f64>();
+        if total(&again) < total(self) {
+            self.mean_stage_ms = again.mean_stage_ms;
+        }
+        self.step_seconds.truncate(shared);
+        for (t, a) in self.step_seconds.iter_mut().zip(&again.step_seconds) {
+            *t = t.min(*a);
+        }
+        self.median_ms_per_step = median_ms(&self.step_seconds);
+        self.late_median_ms_per_step = late_median_ms(&self.step_seconds);
+        self.steps_measured = shared;
+        self.peak_mib = self.peak_mib.max(again.peak_mib);
+        self.runs += again.runs;
+    }
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -305,6 +328,7 @@ fn measure_tumble(
         peak_mib: (alloc::peak().saturating_sub(baseline)) as f64 / (1024.0 * 1024.0),
         steps_measured: times.len(),
         asleep_at_end: world.bodies.iter().filter(|b| b.asleep).count(),
+        runs: 1,
         step_seconds: times,
     })
 }
@@ -339,6 +363,7 @@ fn measure_rapier(
         peak_mib,
         steps_measured: times.len(),
         asleep_at_end,
+        runs: 1,
         step_seconds: times,
     })
 }
@@ -386,6 +411,7 @@ pub fn run(config: &ScaleConfig, progress: &dyn Progress) -> anyhow::Result<Scal
             .insert(v.name().into(), m);
         progress.set_position(k as u64 + 1);
     }
+    repeat_short_runs(&jobs, &mut results, config, progress)?;
     progress.finish();
     std::fs::create_dir_all(&config.out)?;
     let csv = config.out.join("scale.csv");
@@ -405,6 +431,47 @@ pub fn run(config: &ScaleConfig, progress: &dyn Progress) -> anyhow::Result<Scal
         csv,
         plots,
     })
+}
+
+/// Stepping time a run is repeated for, at least (seconds), and the most runs it gets.
+const MIN_MEASURED_SECONDS: f64 = 1.0;
+const MAX_RUNS: usize = 5;
+
+/// Runs again every job whose measured steps took under [`MIN_MEASURED_SECONDS`] in all, at
+/// most [`MAX_RUNS`] times, in rounds over the jobs (as `bench accuracy` does), keeping each
+/// step's fastest time. The runs are identical, their times are not: scatter-1000 on one thread
+/// took 0.166 ms a step in one run and 0.212-0.222 in five later ones of the same binary, and
+/// its growth to 10,000 bodies read 17x or 11x accordingly.
+fn repeat_short_runs(
+    jobs: &[(String, usize, Variant)],
+    results: &mut BTreeMap<String, BTreeMap<String, Measurement>>,
+    config: &ScaleConfig,
+    progress: &dyn Progress,
+) -> anyhow::Result<()> {
+    // Each run stepped at least as long as the fastest times add up to.
+    let measured = |m: &Measurement| m.step_seconds.iter().sum::<f64>() * m.runs as f64;
+    for round in 1..MAX_RUNS {
+        let mut repeated = false;
+        for (scene, n, v) in jobs {
+            let key = format!("{scene}-{n}");
+            let Some(m) = results.get(&key).and_then(|r| r.get(v.name())) else {
+                continue;
+            };
+            if measured(m) >= MIN_MEASURED_SECONDS {
+                continue;
+            }
+            progress.message(&format!("{key} {} (run {})", v.name(), round + 1));
+            let again = measure(scene, *n, *v, config)?;
+            if let Some(m) = results.get_mut(&key).and_then(|r| r.get_mut(v.name())) {
+                m.keep_fastest(again);
+            }
+            repeated = true;
+        }
+        if !repeated {
+            break;
+        }
+    }
+    Ok(())
 }
 
 /// The ratios the targets read, per scene and size: `a_over_b` = a's median / b's, both
@@ -490,7 +557,7 @@ fn csv_text(results: &BTreeMap<String, BTreeMap<String, Measurement>>) -> String
         .chain([POSE_UPDATE])
         .collect();
     let mut csv = format!(
-        "scene,n,variant,median_ms_per_step,late_median_ms_per_step,{},visits_per_step,contacts_per_step,peak_mib,steps_measured,asleep_at_end\n",
+        "scene,n,variant,median_ms_per_step,late_median_ms_per_step,{},visits_per_step,contacts_per_step,peak_mib,steps_measured,asleep_at_end,runs\n",
         stage_names
             .iter()
             .map(|s| format!("{s}_ms"))
@@ -505,7 +572,7 @@ fn csv_text(results: &BTreeMap<String, BTreeMap<String, Measurement>>) -> String
                 .map(|s| format!("{:.5}", m.mean_stage_ms.get(*s).copied().unwrap_or(0.0)))
                 .collect();
             csv.push_str(&format!(
-                "{scene},{n},{v},{:.5},{:.5},{},{:.1},{:.1},{:.2},{},{}\n",
+                "{scene},{n},{v},{:.5},{:.5},{},{:.1},{:.1},{:.2},{},{},{}\n",
                 m.median_ms_per_step,
                 m.late_median_ms_per_step,
                 stages.join(","),
@@ -513,7 +580,8 @@ fn csv_text(results: &BTreeMap<String, BTreeMap<String, Measurement>>) -> String
                 m.contacts_per_step,
                 m.peak_mib,
                 m.steps_measured,
-                m.asleep_at_end
+                m.asleep_at_end,
+                m.runs
             ));
         }
     }
@@ -582,8 +650,33 @@ mod tests {
             peak_mib: 0.0,
             steps_measured: step_seconds.len(),
             asleep_at_end: 0,
+            runs: 1,
             step_seconds,
         }
+    }
+
+    /// Two identical runs disturbed at different steps: each step keeps its faster time, the
+    /// medians follow, the stage means are the faster run's, the peak the larger.
+    #[test]
+    fn repeated_runs_keep_each_steps_fastest_time() {
+        let mut first = run_of(vec![0.001, 0.003, 0.002, 0.004, 0.002]);
+        first.mean_stage_ms.insert("solve".into(), 2.4);
+        first.peak_mib = 3.0;
+        let mut again = run_of(vec![0.002, 0.001, 0.002, 0.009, 0.001]);
+        again.mean_stage_ms.insert("solve".into(), 1.9);
+        again.peak_mib = 2.0;
+        first.keep_fastest(again);
+        assert_eq!(first.step_seconds, vec![0.001, 0.001, 0.002, 0.004, 0.001]);
+        assert!((first.median_ms_per_step - 1.0).abs() < 1e-12);
+        assert!((first.late_median_ms_per_step - 1.0).abs() < 1e-12);
+        assert_eq!(
+            first.mean_stage_ms["solve"], 2.4,
+            "the first run was faster in all"
+        );
+        assert_eq!(
+            (first.peak_mib, first.runs, first.steps_measured),
+            (3.0, 2, 5)
+        );
     }
 
     /// One thread cut by the time cap after 3 cheap steps, all cores on into 4 dear ones: the

@@ -216,6 +216,11 @@ fn print_scale(report: &ScaleReport) {
             }
         }
     }
+    println!(
+        "\nms/step: median over the measured steps; a run whose steps took under a second in all \
+         was run again, up to five times in all, each step keeping its fastest time (`runs` in \
+         the CSV and JSON)."
+    );
     if !report.growth.is_empty() {
         println!(
             "\ngrowth from one size to the next (larger median / smaller, over the steps both measured):"
