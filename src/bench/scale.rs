@@ -155,7 +155,7 @@ pub struct Measurement {
     pub steps_measured: usize,
     /// Bodies asleep after the last step.
     pub asleep_at_end: usize,
-    /// Identical runs measured ([`repeat_short_runs`]): each step's time is its fastest.
+    /// Identical runs measured ([`repeat_short_runs`]): each step's time is its median.
     pub runs: usize,
     /// Wall seconds of each measured step, for ratios over the steps two runs share.
     #[serde(skip)]
@@ -163,23 +163,29 @@ pub struct Measurement {
 }
 
 impl Measurement {
-    /// Folds in another run of the same job: each step's fastest time (the runs are identical,
-    /// the engines deterministic), the stage means of the faster run, the larger peak.
-    fn keep_fastest(&mut self, again: Measurement) {
-        let shared = self.step_seconds.len().min(again.step_seconds.len());
-        let total = |m: &Measurement| m.step_seconds[..shared].iter().sum::<f64>();
-        if total(&again) < total(self) {
-            self.mean_stage_ms = again.mean_stage_ms;
+    /// Identical runs of one job (the engines are deterministic) as one: each step's median
+    /// time over the runs, the stage means averaged, the largest peak. The median, not the
+    /// fastest: a job measured once keeps its steps' typical disturbance, so the fastest of
+    /// several would flatter the short jobs against the long ones.
+    fn combined(runs: Vec<Measurement>) -> Measurement {
+        let mut first = runs[0].clone();
+        if runs.len() == 1 {
+            return first;
         }
-        self.step_seconds.truncate(shared);
-        for (t, a) in self.step_seconds.iter_mut().zip(&again.step_seconds) {
-            *t = t.min(*a);
+        let shared = runs.iter().map(|m| m.step_seconds.len()).min().unwrap_or(0);
+        first.step_seconds = (0..shared)
+            .map(|k| median(runs.iter().map(|m| m.step_seconds[k]).collect()))
+            .collect();
+        for (stage, mean) in first.mean_stage_ms.iter_mut() {
+            let each = runs.iter().filter_map(|m| m.mean_stage_ms.get(stage));
+            *mean = each.sum::<f64>() / runs.len() as f64;
         }
-        self.median_ms_per_step = median_ms(&self.step_seconds);
-        self.late_median_ms_per_step = late_median_ms(&self.step_seconds);
-        self.steps_measured = shared;
-        self.peak_mib = self.peak_mib.max(again.peak_mib);
-        self.runs += again.runs;
+        first.median_ms_per_step = median_ms(&first.step_seconds);
+        first.late_median_ms_per_step = late_median_ms(&first.step_seconds);
+        first.steps_measured = shared;
+        first.peak_mib = runs.iter().map(|m| m.peak_mib).fold(0.0, f64::max);
+        first.runs = runs.len();
+        first
     }
 }
 
@@ -248,6 +254,11 @@ fn time_steps(config: &ScaleConfig, mut step: impl FnMut(bool) -> f64) -> Vec<f6
         }
     }
     times
+}
+
+fn median(mut values: Vec<f64>) -> f64 {
+    values.sort_by(f64::total_cmp);
+    values.get(values.len() / 2).copied().unwrap_or(0.0)
 }
 
 fn median_ms(times: &[f64]) -> f64 {
@@ -438,38 +449,46 @@ const MIN_MEASURED_SECONDS: f64 = 1.0;
 const MAX_RUNS: usize = 5;
 
 /// Runs again every job whose measured steps took under [`MIN_MEASURED_SECONDS`] in all, at
-/// most [`MAX_RUNS`] times, in rounds over the jobs (as `bench accuracy` does), keeping each
-/// step's fastest time. The runs are identical, their times are not: scatter-1000 on one thread
-/// took 0.166 ms a step in one run and 0.212-0.222 in five later ones of the same binary, and
-/// its growth to 10,000 bodies read 17x or 11x accordingly.
+/// most [`MAX_RUNS`] times, in rounds over the jobs (as `bench accuracy` does), and takes each
+/// step's median time ([`Measurement::combined`]). The runs are identical, their times are
+/// not: scatter-1000 on one thread took 0.166 ms a step in one run and 0.212-0.222 in five
+/// later ones of the same binary, and its growth to 10,000 bodies read 17x or 11x accordingly.
 fn repeat_short_runs(
     jobs: &[(String, usize, Variant)],
     results: &mut BTreeMap<String, BTreeMap<String, Measurement>>,
     config: &ScaleConfig,
     progress: &dyn Progress,
 ) -> anyhow::Result<()> {
-    // Each run stepped at least as long as the fastest times add up to.
-    let measured = |m: &Measurement| m.step_seconds.iter().sum::<f64>() * m.runs as f64;
+    let seconds = |m: &Measurement| m.step_seconds.iter().sum::<f64>();
+    let mut runs: BTreeMap<(String, &str), Vec<Measurement>> = BTreeMap::new();
+    for (scene, n, v) in jobs {
+        let key = format!("{scene}-{n}");
+        if let Some(m) = results.get_mut(&key).and_then(|r| r.remove(v.name())) {
+            runs.insert((key, v.name()), vec![m]);
+        }
+    }
     for round in 1..MAX_RUNS {
         let mut repeated = false;
         for (scene, n, v) in jobs {
-            let key = format!("{scene}-{n}");
-            let Some(m) = results.get(&key).and_then(|r| r.get(v.name())) else {
+            let Some(done) = runs.get_mut(&(format!("{scene}-{n}"), v.name())) else {
                 continue;
             };
-            if measured(m) >= MIN_MEASURED_SECONDS {
+            if done.iter().map(seconds).sum::<f64>() >= MIN_MEASURED_SECONDS {
                 continue;
             }
-            progress.message(&format!("{key} {} (run {})", v.name(), round + 1));
-            let again = measure(scene, *n, *v, config)?;
-            if let Some(m) = results.get_mut(&key).and_then(|r| r.get_mut(v.name())) {
-                m.keep_fastest(again);
-            }
+            progress.message(&format!("{scene}-{n} {} (run {})", v.name(), round + 1));
+            done.push(measure(scene, *n, *v, config)?);
             repeated = true;
         }
         if !repeated {
             break;
         }
+    }
+    for ((key, variant), measured) in runs {
+        results
+            .entry(key)
+            .or_default()
+            .insert(variant.to_string(), Measurement::combined(measured));
     }
     Ok(())
 }
@@ -655,27 +674,31 @@ mod tests {
         }
     }
 
-    /// Two identical runs disturbed at different steps: each step keeps its faster time, the
-    /// medians follow, the stage means are the faster run's, the peak the larger.
+    /// Three identical runs disturbed at different steps: each step keeps its median time, the
+    /// medians follow, the stage means are averaged, the peak is the largest.
     #[test]
-    fn repeated_runs_keep_each_steps_fastest_time() {
-        let mut first = run_of(vec![0.001, 0.003, 0.002, 0.004, 0.002]);
-        first.mean_stage_ms.insert("solve".into(), 2.4);
-        first.peak_mib = 3.0;
-        let mut again = run_of(vec![0.002, 0.001, 0.002, 0.009, 0.001]);
-        again.mean_stage_ms.insert("solve".into(), 1.9);
-        again.peak_mib = 2.0;
-        first.keep_fastest(again);
-        assert_eq!(first.step_seconds, vec![0.001, 0.001, 0.002, 0.004, 0.001]);
-        assert!((first.median_ms_per_step - 1.0).abs() < 1e-12);
-        assert!((first.late_median_ms_per_step - 1.0).abs() < 1e-12);
+    fn repeated_runs_keep_each_steps_median_time() {
+        let run = |steps: Vec<f64>, solve: f64, peak: f64| {
+            let mut m = run_of(steps);
+            m.mean_stage_ms.insert("solve".into(), solve);
+            m.peak_mib = peak;
+            m
+        };
+        let combined = Measurement::combined(vec![
+            run(vec![0.001, 0.003, 0.002, 0.004, 0.002], 2.4, 3.0),
+            run(vec![0.002, 0.001, 0.002, 0.009, 0.001], 1.8, 2.0),
+            run(vec![0.003, 0.002, 0.001, 0.005, 0.003], 2.1, 2.5),
+        ]);
         assert_eq!(
-            first.mean_stage_ms["solve"], 2.4,
-            "the first run was faster in all"
+            combined.step_seconds,
+            vec![0.002, 0.002, 0.002, 0.005, 0.002]
         );
+        assert!((combined.median_ms_per_step - 2.0).abs() < 1e-12);
+        assert!((combined.late_median_ms_per_step - 2.0).abs() < 1e-12);
+        assert!((combined.mean_stage_ms["solve"] - 2.1).abs() < 1e-12);
         assert_eq!(
-            (first.peak_mib, first.runs, first.steps_measured),
-            (3.0, 2, 5)
+            (combined.peak_mib, combined.runs, combined.steps_measured),
+            (3.0, 3, 5)
         );
     }
 

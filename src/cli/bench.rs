@@ -218,8 +218,8 @@ fn print_scale(report: &ScaleReport) {
     }
     println!(
         "\nms/step: median over the measured steps; a run whose steps took under a second in all \
-         was run again, up to five times in all, each step keeping its fastest time (`runs` in \
-         the CSV and JSON)."
+         was run again, up to five times in all, each step taking its median time over the runs \
+         (`runs` in the CSV and JSON)."
     );
     if !report.growth.is_empty() {
         println!(
