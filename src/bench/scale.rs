@@ -256,9 +256,15 @@ fn time_steps(config: &ScaleConfig, mut step: impl FnMut(bool) -> f64) -> Vec<f6
     times
 }
 
+/// The middle value, or the mean of the middle two (two runs: their mean, not the slower).
 fn median(mut values: Vec<f64>) -> f64 {
     values.sort_by(f64::total_cmp);
-    values.get(values.len() / 2).copied().unwrap_or(0.0)
+    let half = values.len() / 2;
+    match values.len() {
+        0 => 0.0,
+        n if n % 2 == 0 => 0.5 * (values[half - 1] + values[half]),
+        _ => values[half],
+    }
 }
 
 fn median_ms(times: &[f64]) -> f64 {
@@ -700,6 +706,11 @@ mod tests {
             (combined.peak_mib, combined.runs, combined.steps_measured),
             (3.0, 3, 5)
         );
+        let two = Measurement::combined(vec![
+            run(vec![0.001, 0.004], 1.0, 1.0),
+            run(vec![0.003, 0.002], 1.0, 1.0),
+        ]);
+        assert_eq!(two.step_seconds, vec![0.002, 0.003], "two runs: the mean");
     }
 
     /// One thread cut by the time cap after 3 cheap steps, all cores on into 4 dear ones: the
