@@ -197,18 +197,11 @@ fn grab_of(world: &World, (body, target, hertz): (usize, [f64; 3], f64)) -> Grab
     }
 }
 
-/// Runs `world` 300 steps: the first half with its settings, the second with `later` and the
-/// grab (if any) pulling, as a viewer user would. Returns the bodies reported quarantined.
+/// Runs `world` 300 steps, the second half with `later` and the grab (if any) pulling.
+/// Returns the bodies reported quarantined.
 fn run(world: &mut World, later: &Settings, grab: Option<(usize, [f64; 3], f64)>) -> Vec<usize> {
-    let mut quarantined = Vec::new();
-    for k in 0..300 {
-        if k == 150 {
-            world.settings = later.clone();
-            world.grab = grab.map(|g| grab_of(world, g));
-        }
-        quarantined.extend(world.step().quarantined);
-    }
-    quarantined
+    let grab = grab.map(|g| grab_of(world, g));
+    tumble::scene::fuzzing::run_with_change(world, 300, later, grab)
 }
 
 /// The bits of every body's state.
@@ -240,18 +233,42 @@ fn grab_strategy() -> impl Strategy<Value = Option<(usize, [f64; 3], f64)>> {
     )
 }
 
+/// One random case: bodies, distance constraints, the settings before and after the change,
+/// a grab, and how far apart the bodies start.
+#[derive(Debug, Clone)]
+struct Case {
+    specs: Vec<BodySpec>,
+    links: Vec<(usize, usize, f64, f64)>,
+    first: Settings,
+    later: Settings,
+    grab: Option<(usize, [f64; 3], f64)>,
+    spread: f64,
+}
+
+fn case(min_bodies: usize) -> impl Strategy<Value = Case> {
+    (
+        prop::collection::vec(body_spec(), min_bodies..12),
+        prop::collection::vec((0usize..12, 0usize..12, 0.0f64..1.0, 0.0f64..1.0), 0..6),
+        (settings(), settings()),
+        grab_strategy(),
+        prop::sample::select(vec![1.0, 0.1]),
+    )
+        .prop_map(|(specs, links, (first, later), grab, spread)| Case {
+            specs,
+            links,
+            first,
+            later,
+            grab,
+            spread,
+        })
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 256, failure_persistence: None, .. ProptestConfig::default() })]
     #[test]
-    fn random_scenes_stay_finite(
-        specs in prop::collection::vec(body_spec(), 1..12),
-        links in prop::collection::vec((0usize..12, 0usize..12, 0.0f64..1.0, 0.0f64..1.0), 0..6),
-        (first, later) in (settings(), settings()),
-        grab in grab_strategy(),
-        spread in prop::sample::select(vec![1.0, 0.1]),
-    ) {
-        let mut world = build((&specs, spread), &links, first);
-        let quarantined = run(&mut world, &later, grab);
+    fn random_scenes_stay_finite(c in case(1)) {
+        let mut world = build((&c.specs, c.spread), &c.links, c.first);
+        let quarantined = run(&mut world, &c.later, c.grab);
         // Every body is finite: either it stayed so, or it was frozen at its last finite state
         // and reported.
         prop_assert!(world.all_finite());
@@ -264,24 +281,18 @@ proptest! {
     /// everything a step depends on (warm starts, sleep timers, quarantine), whatever the scene,
     /// the solver and what changes after it.
     #[test]
-    fn restoring_a_snapshot_repeats_the_steps(
-        specs in prop::collection::vec(body_spec(), 2..12),
-        links in prop::collection::vec((0usize..12, 0usize..12, 0.0f64..1.0, 0.0f64..1.0), 0..6),
-        (first, later) in (settings(), settings()),
-        grab in grab_strategy(),
-        spread in prop::sample::select(vec![1.0, 0.1]),
-    ) {
-        let mut world = build((&specs, spread), &links, first.clone());
+    fn restoring_a_snapshot_repeats_the_steps(c in case(2)) {
+        let mut world = build((&c.specs, c.spread), &c.links, c.first.clone());
         for _ in 0..100 {
             world.step();
         }
         let snapshot = world.snapshot();
-        run(&mut world, &later, grab);
+        run(&mut world, &c.later, c.grab);
         let once = state_bits(&world);
         world.restore(&snapshot);
-        world.settings = first;
+        world.settings = c.first;
         world.grab = None;
-        run(&mut world, &later, grab);
+        run(&mut world, &c.later, c.grab);
         prop_assert!(once == state_bits(&world));
     }
 }

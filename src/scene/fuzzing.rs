@@ -159,16 +159,29 @@ pub fn world(data: &[u8]) {
         target: input.vector(|b| b.lerp(-20.0, 20.0)),
         hertz: input.lerp(0.0, 200.0),
     });
+    let reported = run_with_change(&mut world, 60, &later, grab);
+    assert!(world.all_finite(), "a body went non-finite unreported");
+    for (i, b) in world.bodies.iter().enumerate() {
+        assert_eq!(b.quarantined, reported.contains(&i), "body {i}");
+    }
+}
+
+/// Runs `world` for `steps` steps: the first half with its settings, the second with `later`
+/// and `grab` pulling, as a viewer user would change them. Returns the bodies the steps froze
+/// (quarantined). Shared with the property tests of the step.
+pub fn run_with_change(
+    world: &mut World,
+    steps: usize,
+    later: &Settings,
+    grab: Option<Grab>,
+) -> Vec<usize> {
     let mut reported = Vec::new();
-    for k in 0..60 {
-        if k == 30 {
+    for k in 0..steps {
+        if k == steps / 2 {
             world.settings = later.clone();
             world.grab = grab;
         }
         reported.extend(world.step().quarantined);
     }
-    assert!(world.all_finite(), "a body went non-finite unreported");
-    for (i, b) in world.bodies.iter().enumerate() {
-        assert_eq!(b.quarantined, reported.contains(&i), "body {i}");
-    }
+    reported
 }

@@ -119,7 +119,7 @@ impl ContactStage {
     ) {
         let Bodies { bodies, shapes } = world;
         // Read from a byte per body instead of the bodies (248 bytes each): no contact changes
-        // them, and at scatter-100000 the loop below missed the cache on every body it read.
+        // them, and at scatter-100000 the resolution loop missed the cache on every body it read.
         let flags: Vec<u8> = bodies.iter().map(collision_flags).collect();
         let mut queue = broad.candidate_pairs(
             bodies,
@@ -138,7 +138,7 @@ impl ContactStage {
             precompute(
                 ctx,
                 (bodies, shapes),
-                broad,
+                (broad, &flags),
                 queue.candidates(),
                 &mut precomputed,
             );
@@ -198,13 +198,13 @@ fn all_pairs(
 fn precompute(
     ctx: &StepContext,
     (bodies, shapes): (&[RigidBody], &[Shape]),
-    broad: &BroadPhase,
+    (broad, flags): (&BroadPhase, &[u8]),
     candidates: &[(u32, u32)],
     out: &mut Vec<Option<Detection>>,
 ) {
     let detect = |&(i, j): &(u32, u32)| {
         let (i, j) = (i as usize, j as usize);
-        (broad.overlap(i, j) && may_collide(&bodies[i], &bodies[j]))
+        (broad.overlap(i, j) && flags_may_collide(flags[i], flags[j]))
             .then(|| contact_between(bodies, shapes, i, j, ctx.settings.contact_patches))
     };
     out.par_extend(candidates.par_iter().with_min_len(16).map(detect));
