@@ -148,6 +148,9 @@ pub struct Carried {
     joint_impulses: Vec<f64>,
     joint_sides: HeldSides,
     pair_states: PairStates,
+    /// The settings the state was stepped with: a step with others wakes every sleeper, so
+    /// a restored state continued with its own settings repeats its steps bit for bit.
+    last_settings: Option<crate::sim::Settings>,
 }
 
 impl Carried {
@@ -210,6 +213,7 @@ impl SoftStep {
             joint_impulses: self.joint_impulses.clone(),
             joint_sides: self.joint_sides.clone(),
             pair_states: self.pair_states.clone(),
+            last_settings: self.last_settings.clone(),
         }
     }
 
@@ -218,6 +222,7 @@ impl SoftStep {
         self.joint_impulses.clone_from(&carried.joint_impulses);
         self.joint_sides.clone_from(&carried.joint_sides);
         self.pair_states.clone_from(&carried.pair_states);
+        self.last_settings.clone_from(&carried.last_settings);
     }
 
     /// One step: collide, then solve in substeps.
