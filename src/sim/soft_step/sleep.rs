@@ -1,5 +1,5 @@
-//! Sleeping (after Box2D): a body whose speed, counting its spin at its rim, stays under
-//! [`SLEEP_SPEED`] gathers sleep time; an island (bodies joined by touching contacts and
+//! Sleeping (after Box2D): a body whose speed, counting its spin at its rim and weighed by
+//! [`POSITION_SLEEP_FACTOR`], stays under [`SLEEP_SPEED`] gathers sleep time; an island (bodies joined by touching contacts and
 //! distance constraints) in which every body has slept for [`TIME_TO_SLEEP`] goes to sleep and
 //! costs nothing until something wakes it: contact with a moving body, a constraint to one, a
 //! grab, or a change of settings. A time window, not an instantaneous speed: a pendulum at
@@ -7,7 +7,9 @@
 //!
 //! The speed is that of the step's displacement, as Rapier measures it, not of the velocities
 //! kept: those carry what the last Gauss-Seidel pass left unconverged in a deep pile, which the
-//! next step's solve takes back without moving anything.
+//! next step's solve takes back without moving anything. Both engines weigh that displacement
+//! by half (Box2D v3's `positionSleepFactor` in `b2FinalizeBodies`, Rapier's `drift * 0.5` in
+//! `RigidBodyActivation::update_energy`), so a body sleeps below 0.1 units/s of it.
 
 use super::manifold::{GROUND, Manifold};
 use crate::sim::body::RigidBody;
@@ -16,6 +18,9 @@ use rayon::prelude::*;
 
 /// Speed (units/s) under which a body counts as resting.
 pub const SLEEP_SPEED: f64 = 0.05;
+/// Weight of the step's displacement against [`SLEEP_SPEED`]: "position correction is not as
+/// important for sleep as true velocity" (Box2D v3).
+pub const POSITION_SLEEP_FACTOR: f64 = 0.5;
 /// Seconds an island must rest before it sleeps.
 pub const TIME_TO_SLEEP: f64 = 0.5;
 
@@ -88,7 +93,8 @@ pub fn settle(
         .map(|(i, (b, &(p0, q0)))| {
             let turn = (q0.conjugate() * b.orientation).normalize();
             let angle = 2.0 * turn.xyz().length().atan2(turn.w.abs());
-            let speed = ((b.position - p0).length() + angle * radii[b.shape]) / dt;
+            let moved = (b.position - p0).length() + angle * radii[b.shape];
+            let speed = POSITION_SLEEP_FACTOR * moved / dt;
             b.sleep_time = if speed < SLEEP_SPEED {
                 b.sleep_time + dt
             } else {
@@ -181,4 +187,51 @@ pub fn touching_pairs(manifolds: &[Manifold]) -> impl Iterator<Item = (usize, us
         .iter()
         .filter(|m| m.points().iter().any(|p| p.separation <= 0.0))
         .map(|m| (m.body1, m.body2))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::{DMat3, DQuat, DVec3};
+
+    /// Two bodies alone, one creeping at 0.09 units/s and one at 0.11: weighed by half, as Box2D
+    /// v3 and Rapier weigh a step's displacement, the first rests and sleeps after
+    /// [`TIME_TO_SLEEP`], the second never gathers sleep time.
+    #[test]
+    fn displacement_counts_half_against_the_sleep_speed() {
+        let dt = 0.01;
+        let speeds = [0.09, 0.11];
+        let mut bodies: Vec<RigidBody> = speeds
+            .iter()
+            .map(|_| {
+                RigidBody::new(
+                    0,
+                    1.0,
+                    DMat3::IDENTITY,
+                    1.0,
+                    false,
+                    DVec3::ZERO,
+                    DQuat::IDENTITY,
+                )
+            })
+            .collect();
+        let mut islands = Islands::default();
+        for _ in 0..(1.2 * TIME_TO_SLEEP / dt).ceil() as usize {
+            let start: Vec<_> = bodies.iter().map(|b| (b.position, b.orientation)).collect();
+            for (b, v) in bodies.iter_mut().zip(speeds) {
+                b.position.x += v * dt;
+            }
+            settle(
+                &mut islands,
+                &mut bodies,
+                &[1.0],
+                &start,
+                &[],
+                std::iter::empty(),
+                dt,
+            );
+        }
+        assert!(bodies[0].asleep, "0.09 units/s did not sleep");
+        assert!(!bodies[1].asleep && bodies[1].sleep_time == 0.0);
+    }
 }
