@@ -32,13 +32,15 @@ pub struct ScaleArgs {
     /// Also run sparse-100000.
     #[arg(long)]
     pub huge: bool,
-    /// Measured steps per run (after the warm-up).
+    /// Measured steps per run (after the warm-up); pile-N measures three times as many, for
+    /// its pile to come to rest.
     #[arg(long, default_value_t = 500)]
     pub steps: usize,
     /// Warm-up steps per run.
     #[arg(long, default_value_t = 20)]
     pub warmup: usize,
-    /// Wall-clock cap per run in seconds: slow variants measure fewer steps.
+    /// Wall-clock cap per run in seconds (pile-N: three times it): slow variants measure fewer
+    /// steps.
     #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
     pub max_seconds: f64,
     /// Short smoke run (sizes 100 and 1000, 20 steps).
@@ -219,7 +221,10 @@ fn print_scale(report: &ScaleReport) {
     println!(
         "\nms/step: median over the measured steps; a run whose steps took under a second in all \
          was run again, up to five times in all, each step taking its median time over the runs \
-         (`runs` in the CSV and JSON)."
+         (`runs` in the CSV and JSON). pile-N measures {}x the steps and the time cap of the \
+         others, for its pile to land and come to rest; late: the median over the last fifth \
+         of the measured steps.",
+        tumble::bench::scale::PILE_WINDOW
     );
     if !report.growth.is_empty() {
         println!(
