@@ -287,25 +287,24 @@ fn reduce(mut points: Candidates, normal: DVec3) -> Candidates {
 const REDUCTION_SLOP: f64 = 0.005;
 
 /// The point the reduction starts from: the deepest, or where others lie within
-/// [`REDUCTION_SLOP`] of its depth, the one of them with the smallest feature key (parry's
-/// GJK point or the ground's first vertex, key 0, last). On a patch nearly flat the deepest point changes with every
-/// rocking by a hair, and with it the four points kept and the friction anchor at their
-/// centre: a column of eight boxes left standing in pile-10000 crept across the ground at
-/// 0.004 units/s and swayed at up to 0.06, keeping the pile awake for ever (Rapier, solving
-/// all the points, holds it still); seeded by feature it stands, drift 0.009 in 20 s.
+/// [`REDUCTION_SLOP`] of its depth, the one of them with the smallest feature key (parry's GJK
+/// point or the ground's first vertex, key 0, last). On a patch nearly flat the deepest point
+/// changes with every rocking by a hair, and with it the four points kept and the friction
+/// anchor at their centre: a column of eight boxes left standing in pile-10000 crept across the
+/// ground at 0.004 units/s and swayed at up to 0.06, keeping the pile awake for ever (Rapier,
+/// solving all the points, holds it still); started by feature it stands, drift 0.009 in 20 s.
 fn anchor_point(points: &[ManifoldPoint]) -> usize {
     let deepest = points[argmax(points, |p| -p.separation)].separation;
     let rank = |p: &ManifoldPoint| match p.key {
         0 => u64::MAX,
         key => key,
     };
-    argmax(points, |p| {
-        if p.separation <= deepest + REDUCTION_SLOP {
-            -(rank(p) as f64)
-        } else {
-            f64::NEG_INFINITY
-        }
-    })
+    points
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.separation <= deepest + REDUCTION_SLOP)
+        .min_by_key(|(_, p)| rank(p))
+        .map_or(0, |(k, _)| k)
 }
 
 fn argmax(points: &[ManifoldPoint], score: impl Fn(&ManifoldPoint) -> f64) -> usize {
