@@ -237,8 +237,8 @@ fn generated(scene: &str, n: usize, settings: Settings) -> anyhow::Result<World>
 
 /// How many times the other families' steps and time cap pile-N measures: a pile is there to
 /// land and come to rest, where sleeping shows in the late median. pile-10000 lands within 10
-/// s of its drop and its soft step sleeps at about 25 s (dt 0.02); the default 500 steps end
-/// at 10 s.
+/// s of its drop and its soft step was all asleep at 15 s in a probe (dt 0.02; when a pile
+/// settles is chaotic); the default 500 steps end at 10 s.
 pub const PILE_WINDOW: usize = 3;
 
 /// Measured steps and time cap of a scene family's runs.

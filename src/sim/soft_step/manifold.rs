@@ -292,7 +292,7 @@ const REDUCTION_SLOP: f64 = 0.005;
 /// changes with every rocking by a hair, and with it the four points kept and the friction
 /// anchor at their centre: a column of eight boxes left standing in pile-10000 crept across the
 /// ground at 0.004 units/s and swayed at up to 0.06, keeping the pile awake for ever (Rapier,
-/// solving all the points, holds it still); started by feature it stands, drift 0.009 in 20 s.
+/// solving all the points, holds it still); started by feature it stands, drift 0.019 in 20 s.
 fn anchor_point(points: &[ManifoldPoint]) -> usize {
     let deepest = points[argmax(points, |p| -p.separation)].separation;
     let rank = |p: &ManifoldPoint| match p.key {
