@@ -144,6 +144,7 @@ pub const POSE_UPDATE: &str = "pose_update";
 
 #[derive(Debug, Clone, Serialize)]
 pub struct Measurement {
+    /// Median over the first `--steps` measured steps (a pile is watched on after them).
     pub median_ms_per_step: f64,
     /// Median over the last fifth of the measured steps, where sleeping shows.
     pub late_median_ms_per_step: f64,
@@ -160,9 +161,36 @@ pub struct Measurement {
     /// Wall seconds of each measured step, for ratios over the steps two runs share.
     #[serde(skip)]
     pub step_seconds: Vec<f64>,
+    /// How many of the first `step_seconds` the median, the stage means and the ratios cover.
+    #[serde(skip)]
+    pub typical_steps: usize,
 }
 
 impl Measurement {
+    /// A run's measurement from each step's wall seconds, the first `typical_steps` of them
+    /// its typical window.
+    fn from_times(step_seconds: Vec<f64>, typical_steps: usize) -> Measurement {
+        let typical_steps = typical_steps.min(step_seconds.len());
+        Measurement {
+            median_ms_per_step: median_ms(&step_seconds[..typical_steps]),
+            late_median_ms_per_step: late_median_ms(&step_seconds),
+            mean_stage_ms: BTreeMap::new(),
+            constraint_visits_per_step: 0.0,
+            contacts_per_step: 0.0,
+            peak_mib: 0.0,
+            steps_measured: step_seconds.len(),
+            asleep_at_end: 0,
+            runs: 1,
+            step_seconds,
+            typical_steps,
+        }
+    }
+
+    /// The steps of the typical window.
+    fn typical(&self) -> &[f64] {
+        &self.step_seconds[..self.typical_steps.min(self.step_seconds.len())]
+    }
+
     /// Identical runs of one job (the engines are deterministic) as one: each step's median
     /// time over the runs, the stage means averaged, the largest peak. The median, not the
     /// fastest: a job measured once keeps its steps' typical disturbance, so the fastest of
@@ -180,7 +208,8 @@ impl Measurement {
             let each = runs.iter().filter_map(|m| m.mean_stage_ms.get(stage));
             *mean = each.sum::<f64>() / runs.len() as f64;
         }
-        first.median_ms_per_step = median_ms(&first.step_seconds);
+        first.typical_steps = first.typical_steps.min(shared);
+        first.median_ms_per_step = median_ms(first.typical());
         first.late_median_ms_per_step = late_median_ms(&first.step_seconds);
         first.steps_measured = shared;
         first.peak_mib = runs.iter().map(|m| m.peak_mib).fold(0.0, f64::max);
@@ -235,10 +264,11 @@ fn generated(scene: &str, n: usize, settings: Settings) -> anyhow::Result<World>
     })
 }
 
-/// How many times the other families' steps and time cap pile-N measures: a pile is there to
-/// land and come to rest, where sleeping shows in the late median. pile-10000 lands within 10
-/// s of its drop and its soft step was all asleep at 15 s in a probe (dt 0.02; when a pile
-/// settles is chaotic); the default 500 steps end at 10 s.
+/// How many times the other families' steps and time cap pile-N is watched for: a pile is
+/// there to land and come to rest, where sleeping shows in the late median. Its median, stage
+/// means and ratios cover the first `--steps` like every family's (the landing); its late
+/// median the last fifth of the whole watch. pile-10000 lands within 10 s of its drop and its
+/// soft step was all asleep at 15 s in a probe (dt 0.02; when a pile settles is chaotic).
 pub const PILE_WINDOW: usize = 3;
 
 /// Measured steps and time cap of a scene family's runs.
@@ -323,6 +353,7 @@ fn measure_tumble(
     let mut world = generated(scene, n, settings_for(variant))?;
     let mut stages: BTreeMap<String, f64> = BTreeMap::new();
     let (mut visits, mut contacts, mut vertices_sink) = (0usize, 0usize, 0.0);
+    let mut counted = 0;
     let times = time_steps(config, window(config, scene), |measured| {
         let start = Instant::now();
         let stats = world.step();
@@ -336,9 +367,10 @@ fn measure_tumble(
             pose = t.elapsed().as_secs_f64();
         }
         let total = start.elapsed().as_secs_f64();
-        if !measured {
+        if !measured || counted == config.steps {
             return total;
         }
+        counted += 1;
         for (stage, secs) in stats.timings.iter() {
             *stages.entry(stage.name().to_string()).or_default() += secs;
         }
@@ -348,21 +380,17 @@ fn measure_tumble(
         total
     });
     std::hint::black_box(vertices_sink);
-    let taken = times.len().max(1) as f64;
+    let taken = counted.max(1) as f64;
     for v in stages.values_mut() {
         *v = 1000.0 * *v / taken;
     }
     Ok(Measurement {
-        median_ms_per_step: median_ms(&times),
-        late_median_ms_per_step: late_median_ms(&times),
         mean_stage_ms: stages,
         constraint_visits_per_step: visits as f64 / taken,
         contacts_per_step: contacts as f64 / taken,
         peak_mib: (alloc::peak().saturating_sub(baseline)) as f64 / (1024.0 * 1024.0),
-        steps_measured: times.len(),
         asleep_at_end: world.bodies.iter().filter(|b| b.asleep).count(),
-        runs: 1,
-        step_seconds: times,
+        ..Measurement::from_times(times, config.steps)
     })
 }
 
@@ -379,25 +407,17 @@ fn measure_rapier(
     let mut rapier = super::rapier::RapierScene::from_world(&world, sleeping);
     drop(world);
     let times = time_steps(config, window(config, scene), |_| rapier.step());
-    let total: f64 = times.iter().sum();
+    let typical = &times[..config.steps.min(times.len())];
     let mut stages = BTreeMap::new();
     stages.insert(
         "total".to_string(),
-        1000.0 * total / times.len().max(1) as f64,
+        1000.0 * typical.iter().sum::<f64>() / typical.len().max(1) as f64,
     );
-    let peak_mib = (alloc::peak().saturating_sub(baseline)) as f64 / (1024.0 * 1024.0);
-    let asleep_at_end = rapier.asleep();
     Ok(Measurement {
-        median_ms_per_step: median_ms(&times),
-        late_median_ms_per_step: late_median_ms(&times),
         mean_stage_ms: stages,
-        constraint_visits_per_step: 0.0,
-        contacts_per_step: 0.0,
-        peak_mib,
-        steps_measured: times.len(),
-        asleep_at_end,
-        runs: 1,
-        step_seconds: times,
+        peak_mib: (alloc::peak().saturating_sub(baseline)) as f64 / (1024.0 * 1024.0),
+        asleep_at_end: rapier.asleep(),
+        ..Measurement::from_times(times, config.steps)
     })
 }
 
@@ -546,8 +566,9 @@ fn speedups(
 
 /// `a`'s median ms per step over `b`'s, both over the first steps both runs measured.
 fn shared_ratio(a: &Measurement, b: &Measurement) -> f64 {
-    let shared = a.step_seconds.len().min(b.step_seconds.len());
-    median_ms(&a.step_seconds[..shared]) / median_ms(&b.step_seconds[..shared]).max(1e-9)
+    let (a, b) = (a.typical(), b.typical());
+    let shared = a.len().min(b.len());
+    median_ms(&a[..shared]) / median_ms(&b[..shared]).max(1e-9)
 }
 
 /// Each size's runs of one scene family, by variant.
@@ -682,18 +703,22 @@ mod tests {
     use super::*;
 
     fn run_of(step_seconds: Vec<f64>) -> Measurement {
-        Measurement {
-            median_ms_per_step: median_ms(&step_seconds),
-            late_median_ms_per_step: late_median_ms(&step_seconds),
-            mean_stage_ms: BTreeMap::new(),
-            constraint_visits_per_step: 0.0,
-            contacts_per_step: 0.0,
-            peak_mib: 0.0,
-            steps_measured: step_seconds.len(),
-            asleep_at_end: 0,
-            runs: 1,
-            step_seconds,
-        }
+        let n = step_seconds.len();
+        Measurement::from_times(step_seconds, n)
+    }
+
+    /// A pile watched on past its typical window: its median and the ratios cover the first
+    /// steps only (the landing), its late median the last fifth of all (at rest).
+    #[test]
+    fn a_watched_run_has_its_median_from_the_typical_window_and_late_from_the_end() {
+        let landing = vec![0.010; 5];
+        let resting = vec![1e-6; 10];
+        let pile = Measurement::from_times([landing.clone(), resting].concat(), 5);
+        assert_eq!(pile.median_ms_per_step, 10.0);
+        assert_eq!(pile.late_median_ms_per_step, 0.001);
+        assert_eq!(pile.steps_measured, 15);
+        let other = Measurement::from_times(vec![0.005; 15], 5);
+        assert_eq!(shared_ratio(&pile, &other), 2.0);
     }
 
     /// Three identical runs disturbed at different steps: each step keeps its median time, the

@@ -32,8 +32,8 @@ pub struct ScaleArgs {
     /// Also run sparse-100000.
     #[arg(long)]
     pub huge: bool,
-    /// Measured steps per run (after the warm-up); pile-N measures three times as many, for
-    /// its pile to come to rest.
+    /// Measured steps per run (after the warm-up); pile-N is watched on for three times as
+    /// many, for its pile to come to rest (its median still covers the first ones).
     #[arg(long, default_value_t = 500)]
     pub steps: usize,
     /// Warm-up steps per run.
@@ -221,9 +221,9 @@ fn print_scale(report: &ScaleReport) {
     println!(
         "\nms/step: median over the measured steps; a run whose steps took under a second in all \
          was run again, up to five times in all, each step taking its median time over the runs \
-         (`runs` in the CSV and JSON). pile-N measures {}x the steps and the time cap of the \
-         others, for its pile to land and come to rest; late: the median over the last fifth \
-         of the measured steps.",
+         (`runs` in the CSV and JSON). pile-N is watched on for {}x the steps and the time cap, \
+         for its pile to land and come to rest: its median, stages and ratios cover the first \
+         steps as every scene's do; late: the median over the last fifth of all its steps.",
         tumble::bench::scale::PILE_WINDOW
     );
     if !report.growth.is_empty() {
