@@ -1,14 +1,14 @@
 //! Sleeping (after Box2D): a body whose speed, counting its spin at its rim and weighed by
-//! [`POSITION_SLEEP_FACTOR`], stays under [`SLEEP_SPEED`] gathers sleep time; an island (bodies joined by touching contacts and
-//! distance constraints) in which every body has slept for [`TIME_TO_SLEEP`] goes to sleep and
-//! costs nothing until something wakes it: contact with a moving body, a constraint to one, a
-//! grab, or a change of settings. A time window, not an instantaneous speed: a pendulum at
-//! its apex is still for an instant only.
+//! [`POSITION_SLEEP_FACTOR`], stays under [`SLEEP_SPEED`] gathers sleep time; an island (bodies
+//! joined by touching contacts and distance constraints) in which every body has slept for
+//! [`TIME_TO_SLEEP`] goes to sleep and costs nothing until something wakes it: contact with a
+//! moving body, a constraint to one, a grab, or a change of settings. A time window, not an
+//! instantaneous speed: a pendulum at its apex is still for an instant only.
 //!
 //! The speed is that of the step's displacement, as Rapier measures it, not of the velocities
 //! kept: those carry what the last Gauss-Seidel pass left unconverged in a deep pile, which the
-//! next step's solve takes back without moving anything. Both engines weigh that displacement
-//! by half (Box2D v3's `positionSleepFactor` in `b2FinalizeBodies`, Rapier's `drift * 0.5` in
+//! next step's solve takes back without moving anything. Box2D v3 and Rapier weigh that
+//! displacement by half (Box2D v3's `positionSleepFactor` in `b2FinalizeBodies`, Rapier's `drift * 0.5` in
 //! `RigidBodyActivation::update_energy`), so a body sleeps below 0.1 units/s of it.
 
 use super::manifold::{GROUND, Manifold};
