@@ -8,8 +8,8 @@
 //! The speed is that of the step's displacement, as Rapier measures it, not of the velocities
 //! kept: those carry what the last Gauss-Seidel pass left unconverged in a deep pile, which the
 //! next step's solve takes back without moving anything. Box2D v3 and Rapier weigh that
-//! displacement by half (Box2D v3's `positionSleepFactor` in `b2FinalizeBodies`, Rapier's `drift * 0.5` in
-//! `RigidBodyActivation::update_energy`), so a body sleeps below 0.1 units/s of it.
+//! displacement by half (`positionSleepFactor` in Box2D's `b2FinalizeBodies`, `drift * 0.5` in
+//! Rapier's `RigidBodyActivation::update_energy`), so a body rests below 0.1 units/s of it.
 
 use super::manifold::{GROUND, Manifold};
 use crate::sim::body::RigidBody;
