@@ -407,18 +407,15 @@ fn measure_rapier(
     let mut rapier = super::rapier::RapierScene::from_world(&world, sleeping);
     drop(world);
     let times = time_steps(config, window(config, scene), |_| rapier.step());
-    let typical = &times[..config.steps.min(times.len())];
-    let mut stages = BTreeMap::new();
-    stages.insert(
-        "total".to_string(),
-        1000.0 * typical.iter().sum::<f64>() / typical.len().max(1) as f64,
-    );
-    Ok(Measurement {
-        mean_stage_ms: stages,
+    let mut measured = Measurement {
         peak_mib: (alloc::peak().saturating_sub(baseline)) as f64 / (1024.0 * 1024.0),
         asleep_at_end: rapier.asleep(),
         ..Measurement::from_times(times, config.steps)
-    })
+    };
+    let typical = measured.typical();
+    let total_ms = 1000.0 * typical.iter().sum::<f64>() / typical.len().max(1) as f64;
+    measured.mean_stage_ms.insert("total".to_string(), total_ms);
+    Ok(measured)
 }
 
 #[cfg(not(feature = "compare-rapier"))]
