@@ -138,6 +138,52 @@ fn a_pile_of_a_thousand_comes_to_rest_and_sleeps() {
     assert!(world.all_finite());
 }
 
+/// pile-200 (friction 0.5, restitution 0.2) at rest after 10 s, at the largest time step the
+/// bench sweeps: no body moving, and the deepest contact under 1 % of the smallest body. Soft
+/// contacts hold a load like springs, sinking by load / stiffness; with the preset's four
+/// substeps at dt 0.04 the contacts were clamped to 18.75 Hz and the pile sank to 1.4 %
+/// (0.9-1.9 % over 13 nearby draws); a step with contacts now takes seven, and they reach 30 Hz.
+#[test]
+fn a_pile_rests_without_sinking_at_the_largest_step() {
+    let pile = scenarios::run(Scenario::PileRest, &accurate(0.04));
+    let depth = pile.metric("max_penetration_relative").unwrap();
+    let speed = pile.metric("max_speed").unwrap();
+    assert!(depth < 0.01, "deepest contact {depth} of the smallest body");
+    assert!(speed < 0.05, "a body still moves at {speed}");
+}
+
+/// A resting stack of five (awake) whose time step is changed, as the viewer's slider does,
+/// goes on resting: the impulses carried from the last step are per substep, and are scaled
+/// with the substep's length: the fastest box then moves at 1.0e-3 and 5.6e-3 units/s (the
+/// stack settling to the new step's sag). Carried as they were, a change from dt 0.02 to 0.005
+/// applied four times the support in the first substep and threw boxes up at 0.051 units/s,
+/// and one back to 0.02 a quarter of it, dropping them at 0.088.
+#[test]
+fn changing_the_time_step_does_not_kick_a_resting_stack() {
+    for (from, to) in [(0.02, 0.005), (0.005, 0.02)] {
+        let settings = Settings {
+            sleep: false,
+            ..accurate(from)
+        };
+        let mut world = boxes(5, settings);
+        for _ in 0..(4.0 / from) as usize {
+            world.step();
+        }
+        world.settings.time_step = to;
+        let mut fastest: f64 = 0.0;
+        for _ in 0..(0.5 / to) as usize {
+            world.step();
+            for b in &world.bodies {
+                fastest = fastest.max(b.linear_velocity.length());
+            }
+        }
+        assert!(
+            fastest < 0.01,
+            "dt {from} -> {to}: a box moved at {fastest}"
+        );
+    }
+}
+
 #[test]
 fn friction_holds_at_20_degrees_and_slides_at_30() {
     for dt in [0.04, 0.02, 0.01] {

@@ -285,6 +285,18 @@ impl ContactCache {
         Some(Cached { manifold, points })
     }
 
+    /// Scales every remembered impulse by `factor`: the substep they were applied over changed
+    /// length, and an impulse per substep holds a load in proportion to it.
+    pub fn scale_impulses(&mut self, factor: f64) {
+        for m in &mut self.carried {
+            m.friction *= factor;
+            m.twist *= factor;
+        }
+        for p in &mut self.points {
+            p.normal_impulse *= factor;
+        }
+    }
+
     /// The body pairs remembered (body 1 may be [`GROUND`]).
     pub fn pairs(&self) -> impl Iterator<Item = (usize, usize)> + '_ {
         self.pairs.iter().copied()
