@@ -138,6 +138,9 @@ pub struct JointBlocks {
     rows: Vec<Row>,
     reach: Vec<usize>,
     scratch: Scratch,
+    /// Which of each constraint's two bodies moved (`is_dynamic`) when the groups were made:
+    /// they decide the groups.
+    built_for: Vec<(bool, bool)>,
 }
 
 /// One group's system: geometry, rates and their ranges, `K`, impulses, the active set.
@@ -202,6 +205,7 @@ impl JointBlocks {
         let records: Vec<DistanceRecord> = keyed.iter().map(|(_, r)| *r).collect();
         let mut blocks = Self {
             records,
+            built_for: moving_ends(constraints, bodies).collect(),
             ..Self::default()
         };
         let mut start = 0;
@@ -234,16 +238,25 @@ impl JointBlocks {
         });
     }
 
-    /// Whether the grouping still fits these constraints and bodies (same count of records;
-    /// which bodies move decides the groups).
+    /// Whether the grouping still fits these constraints and bodies: the same constraints
+    /// with the same of their bodies moving. A body frozen by the pose check, or moving again
+    /// after a snapshot from before it froze was restored, changes the groups; checking only
+    /// that every record kept a moving body missed both, and a restored snapshot stepped on with
+    /// groups made after it (a property test's random scene at dt 0.069).
     pub fn fits(&self, constraints: &[DistanceConstraint], bodies: &[RigidBody]) -> bool {
-        let count: usize = self.records.iter().map(|r| r.constraint_count).sum();
-        count == constraints.len()
-            && self
-                .records
-                .iter()
-                .all(|r| bodies[r.body1].is_dynamic() || bodies[r.body2].is_dynamic())
+        self.built_for.len() == constraints.len()
+            && moving_ends(constraints, bodies).eq(self.built_for.iter().copied())
     }
+}
+
+/// Whether each constraint's two bodies move.
+fn moving_ends<'a>(
+    constraints: &'a [DistanceConstraint],
+    bodies: &'a [RigidBody],
+) -> impl Iterator<Item = (bool, bool)> + 'a {
+    constraints
+        .iter()
+        .map(|c| (bodies[c.body1].is_dynamic(), bodies[c.body2].is_dynamic()))
 }
 
 /// For each record, the first record (by index, at most its own) that shares a body with it:
@@ -600,6 +613,7 @@ impl JointBlocks {
             rows,
             reach,
             scratch,
+            ..
         } = self;
         let held = Shared::new(held);
         let view = |g: &Group| GroupView {
@@ -904,6 +918,24 @@ mod tests {
         };
         let constraints = edges.iter().flat_map(rod).collect();
         (bodies, constraints)
+    }
+
+    /// A chain of three moving bodies and a fixed one: when the middle body freezes (the pose
+    /// check), or moves again (a snapshot from before it froze restored), the groups no longer
+    /// fit, though every record keeps a moving body and the count of records stays.
+    #[test]
+    fn groups_are_made_again_when_a_body_stops_or_starts_moving() {
+        let mut rng = Rng::new(7);
+        let (mut bodies, constraints) = rods(4, &[(0, 1), (1, 2), (2, 3)], &mut rng);
+        let blocks = JointBlocks::new(&constraints, &bodies);
+        assert!(blocks.fits(&constraints, &bodies));
+        bodies[1].quarantined = true;
+        assert!(!blocks.fits(&constraints, &bodies));
+        let frozen = JointBlocks::new(&constraints, &bodies);
+        assert!(frozen.fits(&constraints, &bodies));
+        assert_ne!(frozen.groups.len(), blocks.groups.len());
+        bodies[1].quarantined = false;
+        assert!(!frozen.fits(&constraints, &bodies));
     }
 
     fn random_vector(rng: &mut Rng, size: f64) -> DVec3 {
