@@ -238,8 +238,8 @@ impl JointBlocks {
         });
     }
 
-    /// Whether the grouping still fits these constraints and bodies: the same constraints
-    /// with the same of their bodies moving. A body frozen by the pose check, or moving again
+    /// Whether the grouping still fits these constraints and bodies: as many constraints, each
+    /// with the same of its two bodies moving. A body frozen by the pose check, or moving again
     /// after a snapshot from before it froze was restored, changes the groups; checking only
     /// that every record kept a moving body missed both, and a restored snapshot stepped on with
     /// groups made after it (a property test's random scene at dt 0.069).
