@@ -152,6 +152,29 @@ fn a_pile_rests_without_sinking_at_the_largest_step() {
     assert!(speed < 0.05, "a body still moves at {speed}");
 }
 
+/// A box dropped on the ground: its steps in the air take the preset's four substeps, and at
+/// dt 0.04 those with contacts take seven (each at most 1/160 s); at dt 0.02 four are short
+/// enough throughout. The step's statistics say how many it took.
+#[test]
+fn steps_with_contacts_take_substeps_short_enough_for_them() {
+    for (dt, with_contacts) in [(0.04, 7), (0.02, 4)] {
+        let awake = Settings {
+            sleep: false,
+            ..accurate(dt)
+        };
+        let mut world = boxes(1, awake);
+        world.bodies[0].position.y += 5.0;
+        let mut seen = std::collections::BTreeSet::new();
+        for _ in 0..(3.0 / dt) as usize {
+            let stats = world.step();
+            let touching = stats.ground_contacts + stats.contacts > 0;
+            seen.insert((touching, stats.substeps));
+        }
+        let expected = [(false, 4), (true, with_contacts)].into_iter().collect();
+        assert_eq!(seen, expected, "dt {dt}");
+    }
+}
+
 /// A resting stack of five (awake) whose time step is changed, as the viewer's slider does,
 /// goes on resting: the impulses carried from the last step are per substep, and are scaled
 /// with the substep's length: the fastest box then moves at 1.0e-3 and 5.6e-3 units/s (the

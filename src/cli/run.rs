@@ -56,6 +56,8 @@ pub struct RunSummary {
     pub quarantined: Vec<usize>,
     /// Bodies asleep after the last step (soft-step solver).
     pub asleep_at_end: usize,
+    /// Substeps of all steps (see `StepStats::substeps`).
+    pub substeps_taken: u64,
     /// Mean milliseconds per step in each stage.
     pub stage_ms: StageTimings,
     pub settings: tumble::Settings,
@@ -166,6 +168,7 @@ impl RunSummary {
             finite: world.all_finite(),
             quarantined: Vec::new(),
             asleep_at_end: 0,
+            substeps_taken: 0,
             stage_ms: StageTimings::default(),
             settings,
         }
@@ -183,6 +186,7 @@ impl RunSummary {
         self.stage_ms.add(&stats.timings);
         self.quarantined.extend(stats.quarantined);
         self.asleep_at_end = stats.asleep;
+        self.substeps_taken += stats.substeps as u64;
         if !world.constraints.is_empty() {
             self.max_constraint_violation = self
                 .max_constraint_violation
@@ -222,9 +226,10 @@ fn print_summary(s: &RunSummary) {
     );
     let per_step = |n: usize| n as f64 / s.steps.max(1) as f64;
     println!(
-        "per step: {:.1} box tests, {:.1} narrow-phase queries",
+        "per step: {:.1} box tests, {:.1} narrow-phase queries, {:.2} substeps",
         per_step(s.pairs_tested),
-        per_step(s.narrow_phase_queries)
+        per_step(s.narrow_phase_queries),
+        per_step(s.substeps_taken as usize)
     );
     if s.constraints > 0 {
         println!(

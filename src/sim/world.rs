@@ -136,7 +136,10 @@ impl World {
     /// The coursework's update: integrate, body contacts (broad phase, narrow phase, resolution),
     /// ground contacts, constraints, then the pose check.
     fn substep(&mut self, ctx: &StepContext) -> StepStats {
-        let mut stats = StepStats::default();
+        let mut stats = StepStats {
+            substeps: 1,
+            ..StepStats::default()
+        };
         let mut watch = Stopwatch::new();
         watch.enter(Stage::Integrate);
         integrate_bodies(&mut self.bodies, &ctx.settings, ctx.dt);

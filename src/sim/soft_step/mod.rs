@@ -293,6 +293,7 @@ impl SoftStep {
             return;
         };
         self.rescale_warm_start(substeps.h);
+        stats.substeps = substeps.count;
         self.prepare(ctx, &mut scene, &substeps);
         // Velocity Verlet: half a kick of gravity, then full kicks between the substeps' drifts
         // (symplectic Euler on the half-step velocities), and the last half kick at the end, so
