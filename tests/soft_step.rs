@@ -17,6 +17,14 @@ fn accurate(dt: f64) -> Settings {
     }
 }
 
+/// The preset with sleeping off: what the solver alone holds still.
+fn awake(dt: f64) -> Settings {
+    Settings {
+        sleep: false,
+        ..accurate(dt)
+    }
+}
+
 /// The preset with restitution 0.2: bodies that land come to rest (at e = 1 they bounce on).
 fn settling(dt: f64) -> Settings {
     Settings {
@@ -63,11 +71,7 @@ fn resting_box_and_stack_do_not_move() {
             let drift = drift_after_settling(&mut boxes(stack, accurate(dt)), 0.05);
             assert!(drift < 1e-6, "dt {dt}, stack of {stack}: moved {drift}");
             // Awake, the solver alone holds it: no creep or jitter beyond a millimetre.
-            let awake = Settings {
-                sleep: false,
-                ..accurate(dt)
-            };
-            let drift = drift_after_settling(&mut boxes(stack, awake), 0.05);
+            let drift = drift_after_settling(&mut boxes(stack, awake(dt)), 0.05);
             assert!(
                 drift < 1e-3,
                 "dt {dt}, stack of {stack} awake: moved {drift}"
@@ -158,11 +162,7 @@ fn a_pile_rests_without_sinking_at_the_largest_step() {
 #[test]
 fn steps_with_contacts_take_substeps_short_enough_for_them() {
     for (dt, with_contacts) in [(0.04, 7), (0.02, 4)] {
-        let awake = Settings {
-            sleep: false,
-            ..accurate(dt)
-        };
-        let mut world = boxes(1, awake);
+        let mut world = boxes(1, awake(dt));
         world.bodies[0].position.y += 5.0;
         let mut seen = std::collections::BTreeSet::new();
         for _ in 0..(3.0 / dt) as usize {
@@ -184,11 +184,7 @@ fn steps_with_contacts_take_substeps_short_enough_for_them() {
 #[test]
 fn changing_the_time_step_does_not_kick_a_resting_stack() {
     for (from, to) in [(0.02, 0.005), (0.005, 0.02)] {
-        let settings = Settings {
-            sleep: false,
-            ..accurate(from)
-        };
-        let mut world = boxes(5, settings);
+        let mut world = boxes(5, awake(from));
         for _ in 0..(4.0 / from) as usize {
             world.step();
         }
