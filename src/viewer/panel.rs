@@ -644,7 +644,7 @@ fn stepping_rows(ui: &mut egui::Ui, session: &Session, lane: &Lane) {
     );
 }
 
-/// Bodies, contacts and constraint work of the last step, energy, and frozen bodies.
+/// Bodies, contacts, substeps and constraint work of the last step, energy, and frozen bodies.
 fn world_rows(ui: &mut egui::Ui, lane: &Lane) {
     let world = &lane.world;
     let last = &lane.last;
@@ -662,6 +662,8 @@ fn world_rows(ui: &mut egui::Ui, lane: &Lane) {
         "deepest penetration",
         format!("{:.4}", last.max_penetration),
     );
+    // The soft step takes more than the setting's where contacts need them (dt over 0.025).
+    stat(ui, "substeps", format!("{}", last.substeps));
     if !world.constraints.is_empty() {
         stat(
             ui,
