@@ -8,27 +8,32 @@ use smallvec::SmallVec;
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
-/// FxHash-style multiplicative hasher for cell keys: fast, and deterministic across runs.
+/// Hasher for cell keys ([`Grid::key`]: x, y and z in 21 bits each, z lowest): the (x, y) part
+/// mixed by MurmurHash3's finaliser, the z cell added unmixed. Deterministic across runs, and
+/// the cells along z of one (x, y) land in neighbouring buckets: the table indexes by the low
+/// bits, a body's cells are walked z fastest, and bodies next to each other in index order
+/// (generated scenes lay them out along z) touch neighbouring buckets, where a full mix sent
+/// every cell to its own cache line.
 #[derive(Default)]
 pub struct CellHasher(u64);
 
 impl Hasher for CellHasher {
-    /// The multiply leaves the low bits depending on the key's low bits only (the z cell),
-    /// and the table indexes by the low bits: every cell of a column would share a bucket.
-    /// MurmurHash3's finaliser mixes the high bits down.
     fn finish(&self) -> u64 {
-        let mut h = self.0;
+        const Z_BITS: u32 = 21;
+        let mut h = self.0 >> Z_BITS;
         h ^= h >> 33;
         h = h.wrapping_mul(0xff51_afd7_ed55_8ccd);
-        h ^ (h >> 33)
+        h ^= h >> 33;
+        h.wrapping_add(self.0 & ((1 << Z_BITS) - 1))
     }
     fn write(&mut self, bytes: &[u8]) {
         for &b in bytes {
             self.write_u64(b as u64);
         }
     }
+    /// Cell keys are written once: the value is kept as it is for [`CellHasher::finish`].
     fn write_u64(&mut self, value: u64) {
-        self.0 = (self.0.rotate_left(5) ^ value).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+        self.0 = self.0.rotate_left(21) ^ value;
     }
 }
 
