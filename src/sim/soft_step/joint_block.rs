@@ -8,6 +8,7 @@
 //! time linear in its length; groups whose envelope exceeds [`MAX_ENVELOPE`] entries fall back
 //! to Gauss-Seidel ([`super::joint_solver`]).
 
+use super::disjoint_sets::DisjointSets;
 use super::constraint_graph::Shared;
 use super::envelope::{self, Row};
 use super::solver_body::SolverBody;
@@ -175,18 +176,10 @@ impl JointBlocks {
     /// record and groups records that share a movable body (union-find).
     pub fn new(constraints: &[DistanceConstraint], bodies: &[RigidBody]) -> Self {
         let records = records_of(constraints);
-        let mut parent: Vec<usize> = (0..bodies.len()).collect();
-        let find = |parent: &mut Vec<usize>, mut x: usize| {
-            while parent[x] != x {
-                parent[x] = parent[parent[x]];
-                x = parent[x];
-            }
-            x
-        };
+        let mut sets = DisjointSets::new(bodies.len());
         for r in &records {
             if bodies[r.body1].is_dynamic() && bodies[r.body2].is_dynamic() {
-                let (a, b) = (find(&mut parent, r.body1), find(&mut parent, r.body2));
-                parent[a.max(b)] = a.min(b);
+                sets.join(r.body1, r.body2);
             }
         }
         let mut keyed: Vec<(usize, DistanceRecord)> = records
@@ -198,7 +191,7 @@ impl JointBlocks {
                 } else {
                     r.body2
                 };
-                (find(&mut parent, anchor), r)
+                (sets.root(anchor), r)
             })
             .collect();
         keyed.sort_by_key(|(group, _)| *group);

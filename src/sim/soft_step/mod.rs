@@ -12,6 +12,7 @@
 
 pub mod constraint_graph;
 pub mod contact_solver;
+pub mod disjoint_sets;
 pub mod envelope;
 pub mod joint_block;
 pub mod joint_solver;

@@ -11,6 +11,7 @@
 //! displacement by half (`positionSleepFactor` in Box2D's `b2FinalizeBodies`, `drift * 0.5` in
 //! Rapier's `RigidBodyActivation::update_energy`), so a body rests below 0.1 units/s of it.
 
+use super::disjoint_sets::DisjointSets;
 use super::manifold::{GROUND, Manifold};
 use crate::sim::body::RigidBody;
 use crate::sim::constraint::DistanceConstraint;
@@ -24,35 +25,20 @@ pub const POSITION_SLEEP_FACTOR: f64 = 0.5;
 /// Seconds an island must rest before it sleeps.
 pub const TIME_TO_SLEEP: f64 = 0.5;
 
-/// Disjoint sets over body indices (union by smaller root, path halving), with the buffers
-/// [`settle`] works in: kept from step to step, so a step allocates nothing.
+/// The islands [`settle`] finds and the buffers it works in: kept from step to step, so a step
+/// allocates nothing.
 #[derive(Debug, Clone, Default)]
 pub struct Islands {
-    parent: Vec<usize>,
+    sets: DisjointSets,
     /// Least sleep time in each island (by root).
     least: Vec<f64>,
 }
 
 impl Islands {
     fn reset(&mut self, n: usize) {
-        self.parent.clear();
-        self.parent.extend(0..n);
+        self.sets.reset(n);
         self.least.clear();
         self.least.resize(n, f64::INFINITY);
-    }
-
-    fn find(&mut self, mut x: usize) -> usize {
-        let parent = &mut self.parent;
-        while parent[x] != x {
-            parent[x] = parent[parent[x]];
-            x = parent[x];
-        }
-        x
-    }
-
-    fn join(&mut self, a: usize, b: usize) {
-        let (a, b) = (self.find(a), self.find(b));
-        self.parent[a.max(b)] = a.min(b);
     }
 }
 
@@ -105,15 +91,15 @@ pub fn settle(
         .collect();
     islands.reset(bodies.len());
     for (i, j) in links(bodies, constraints, touching) {
-        islands.join(i, j);
+        islands.sets.join(i, j);
     }
     // An island rests when its least rested body does.
     for &(i, time) in &awake {
-        let root = islands.find(i);
+        let root = islands.sets.root(i);
         islands.least[root] = islands.least[root].min(time);
     }
     for &(i, _) in &awake {
-        let root = islands.find(i);
+        let root = islands.sets.root(i);
         if islands.least[root] >= TIME_TO_SLEEP {
             let b = &mut bodies[i];
             b.asleep = true;
