@@ -142,18 +142,52 @@ fn a_pile_of_a_thousand_comes_to_rest_and_sleeps() {
     assert!(world.all_finite());
 }
 
-/// pile-200 (friction 0.5, restitution 0.2) at rest after 10 s, at the largest time step the
-/// bench sweeps: no body moving, and the deepest contact under 1 % of the smallest body. Soft
-/// contacts hold a load like springs, sinking by load / stiffness; with the preset's four
-/// substeps at dt 0.04 the contacts were clamped to 18.75 Hz and the pile sank to 1.4 %
-/// (0.9-1.9 % over 13 nearby draws); a step with contacts now takes seven, and they reach 30 Hz.
+/// pile-200 at the largest time step the bench sweeps, dropped with five frictions and
+/// restitutions around the bench's (0.5, 0.2): each comes to rest (all asleep) within 15 s, its
+/// deepest contact then under 1 % of the smallest body. Soft contacts hold a load like springs,
+/// sinking by load / stiffness; with the preset's four substeps at dt 0.04 the contacts were
+/// clamped to 18.75 Hz and the pile sank to 1.4 % (0.9-1.9 % over 13 nearby draws); a step
+/// with contacts now takes seven, and they reach 30 Hz. Several draws because one pile's
+/// settling is chaotic: over 65 draws the time to sleep spreads from 7 to 14 s, and a change
+/// that leaves that spread as it was moves a single draw's by seconds.
 #[test]
-fn a_pile_rests_without_sinking_at_the_largest_step() {
-    let pile = scenarios::run(Scenario::PileRest, &accurate(0.04));
-    let depth = pile.metric("max_penetration_relative").unwrap();
-    let speed = pile.metric("max_speed").unwrap();
-    assert!(depth < 0.01, "deepest contact {depth} of the smallest body");
-    assert!(speed < 0.05, "a body still moves at {speed}");
+fn piles_rest_without_sinking_at_the_largest_step() {
+    let dt = 0.04;
+    let draws = [
+        (0.5, 0.2),
+        (0.45, 0.2),
+        (0.55, 0.2),
+        (0.5, 0.15),
+        (0.5, 0.25),
+    ];
+    for (friction, restitution) in draws {
+        let settings = Settings {
+            friction,
+            restitution,
+            ..accurate(dt)
+        };
+        let mut pile = tumble::scene::generate::pile(200, settings);
+        let moving = |w: &World| w.bodies.iter().any(|b| !b.fixed && !b.asleep);
+        let mut steps = 0;
+        while moving(&pile) && steps < (15.0 / dt) as usize {
+            pile.step();
+            steps += 1;
+        }
+        let draw = format!("friction {friction}, restitution {restitution}");
+        assert!(!moving(&pile), "{draw}: still moving after 15 s");
+        let size = (pile.bodies.iter().filter(|b| !b.fixed))
+            .map(|b| 2.0 * pile.shapes[b.shape].local_box_half_extents.min_element())
+            .fold(f64::INFINITY, f64::min);
+        let depth = (pile.current_contacts().iter())
+            .map(|(_, _, c)| c.depth)
+            .fold(0.0, f64::max);
+        assert!(
+            depth < 0.01 * size,
+            "{draw}: asleep at {:.2} s, deepest contact {:.2} % of the smallest body",
+            steps as f64 * dt,
+            100.0 * depth / size
+        );
+    }
 }
 
 /// A box dropped on the ground: its steps in the air take the preset's four substeps, and at
@@ -348,6 +382,20 @@ fn bounces_keep_e_squared_of_the_energy() {
             assert!(outcome.metric("apexes_seen").unwrap() >= 2.0);
             assert!(error < 1e-3, "dt {dt}, e {e}: apex ratio off by {error}");
         }
+    }
+}
+
+/// A body that bounces while it pushes a neighbour hands that neighbour energy in the same
+/// step, which the bounce must not count again: the mixed scene at e = 1 without friction keeps
+/// its energy within 5e-5 (issue 11's target: 0.5 %). Settled per group of bouncing manifolds
+/// alone, a box bouncing on the ground while it pushed another gained the scene 1.9e-4 in one
+/// step at dt 0.04.
+#[test]
+fn elastic_impacts_that_push_neighbours_keep_the_energy() {
+    for dt in [0.04, 0.02, 0.01] {
+        let outcome = scenarios::run(Scenario::MixedEnergy, &accurate(dt));
+        let drift = outcome.metric("energy_drift").unwrap();
+        assert!(drift < 5e-5, "dt {dt}: energy drifted by {drift}");
     }
 }
 

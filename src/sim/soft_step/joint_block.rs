@@ -8,8 +8,8 @@
 //! time linear in its length; groups whose envelope exceeds [`MAX_ENVELOPE`] entries fall back
 //! to Gauss-Seidel ([`super::joint_solver`]).
 
-use super::disjoint_sets::DisjointSets;
 use super::constraint_graph::Shared;
+use super::disjoint_sets::DisjointSets;
 use super::envelope::{self, Row};
 use super::solver_body::SolverBody;
 use crate::sim::body::RigidBody;

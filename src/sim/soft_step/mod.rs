@@ -648,6 +648,7 @@ impl SoftStep {
             constraints: &w.contacts,
             points: &w.points,
             bouncing: &bouncing,
+            rows: &w.rows,
         };
         restitution::settle_energy(
             &contacts,

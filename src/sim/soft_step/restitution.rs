@@ -13,6 +13,8 @@ use super::constraint_graph::Colours;
 use super::contact_solver::{
     ContactConstraint, ContactPoint, bounce_velocity, for_each_contact_in,
 };
+use super::disjoint_sets::DisjointSets;
+use super::joint_solver::JointRow;
 use super::manifold::{GROUND, Manifold};
 use super::solver_body::SolverBody;
 use crate::sim::body::RigidBody;
@@ -89,6 +91,8 @@ pub struct Contacts<'a> {
     /// The constraints with a bouncing point ([`apply`]): the only ones with restitution
     /// impulses.
     pub bouncing: &'a [u32],
+    /// This step's joint rows: energy passes through them as through contacts.
+    pub rows: &'a [JointRow],
 }
 
 /// How much energy the restitution of one group of bodies may leave it with.
@@ -107,6 +111,18 @@ pub struct EnergyRule {
 /// energy-consistent for frictionless contacts; targets set point by point can fall short of
 /// it when a body's points disagree, as on a tilted landing): `alpha` may then exceed 1, up to
 /// [`MAX_SHARE`].
+///
+/// Then the same cap over each such group with every body it pushed or pulled this step
+/// ([`joined_groups`]): a body that bounces while it pushes a neighbour has handed that
+/// neighbour energy in the substeps, which its own account alone would let the bounce give
+/// back (a box bouncing at e = 1 while it pushed another gained the mixed scene 1.9e-4 of its
+/// energy in one step at dt 0.04). Only scaled down there, never stretched: where the others
+/// lost energy it changes nothing. Settling the joined groups alone, in one pass, weighed each
+/// bounce against its neighbours' losses to friction, and piles stayed livelier (13 draws of
+/// pile-200 at dt 0.02: one still moving at 15 s, the slowest of the others 11.5 s, against
+/// 11.2 s for all 13 before). With the two passes, 65 draws settle about as before, within
+/// the spread of a chaotic settling: median time to sleep 8.7 s against 8.3 at dt 0.02 (three
+/// against two still moving at 15 s), 8.8 s against 8.8 at dt 0.04 (one against none).
 pub fn settle_energy(
     contacts: &Contacts,
     poses: &[RigidBody],
@@ -116,12 +132,38 @@ pub fn settle_energy(
     rule: &EnergyRule,
 ) {
     let groups = bouncing_groups(contacts, poses);
+    if groups.is_empty() {
+        return;
+    }
+    let bounce = |terms: EnergyTerms| share_for(terms, bounce_target(&terms, rule), MAX_SHARE);
+    scale_restitution(&groups, bounce, (poses, before, start), rule, bodies);
+    let joined = joined_groups(contacts, poses, &groups);
+    let cap = |terms: EnergyTerms| share_for(terms, terms.initial + slack(&terms), 1.0);
+    scale_restitution(&joined, cap, (poses, before, start), rule, bodies);
+}
+
+/// Scales each group's restitution (its bodies' velocities since `before`) by the share `share`
+/// gives for its energy terms.
+fn scale_restitution(
+    groups: &[Vec<usize>],
+    share: impl Fn(EnergyTerms) -> f64 + Sync,
+    (poses, before, start): (&[RigidBody], &[(DVec3, DVec3)], &[f64]),
+    rule: &EnergyRule,
+    bodies: &mut [SolverBody],
+) {
     let view = &*bodies;
     // Most steps have a few small groups: on one thread then.
     let shares: Vec<f64> = groups
         .par_iter()
         .with_min_len(16)
-        .map(|members| group_share(members, (poses, before, view), start, rule))
+        .map(|members| {
+            share(energy_terms(
+                members,
+                (poses, before, view),
+                start,
+                rule.gravity,
+            ))
+        })
         .collect();
     for (members, alpha) in groups.iter().zip(shares) {
         if alpha == 1.0 {
@@ -135,15 +177,28 @@ pub fn settle_energy(
     }
 }
 
-/// The share of restitution one group of bodies keeps (see [`settle_energy`]).
-fn group_share(
+/// A group's energy as a function of the share `alpha` of its restitution kept,
+/// `a + b alpha + c alpha^2`, and its energy when the step began.
+#[derive(Clone, Copy)]
+struct EnergyTerms {
+    a: f64,
+    b: f64,
+    c: f64,
+    initial: f64,
+}
+
+fn energy_terms(
     members: &[usize],
     (poses, before, bodies): (&[RigidBody], &[(DVec3, DVec3)], &[SolverBody]),
     start: &[f64],
-    rule: &EnergyRule,
-) -> f64 {
-    // Energy as a function of the share alpha of restitution kept: a + b alpha + c alpha^2.
-    let (mut a, mut b, mut c, mut initial) = (0.0, 0.0, 0.0, 0.0);
+    gravity: DVec3,
+) -> EnergyTerms {
+    let mut t = EnergyTerms {
+        a: 0.0,
+        b: 0.0,
+        c: 0.0,
+        initial: 0.0,
+    };
     for &i in members {
         let (body, (v0, w0)) = (&poses[i], before[i]);
         let (dv, dw) = (
@@ -151,31 +206,42 @@ fn group_share(
             bodies[i].angular_velocity - w0,
         );
         let inertia = body.world_inertia();
-        a += energy(body, v0, w0, rule.gravity);
-        b += body.mass * v0.dot(dv) + w0.dot(inertia * dw);
-        c += 0.5 * body.mass * dv.length_squared() + 0.5 * dw.dot(inertia * dw);
-        initial += start[i];
+        t.a += energy(body, v0, w0, gravity);
+        t.b += body.mass * v0.dot(dv) + w0.dot(inertia * dw);
+        t.c += 0.5 * body.mass * dv.length_squared() + 0.5 * dw.dot(inertia * dw);
+        t.initial += start[i];
     }
-    let slack = 1e-12 * initial.abs().max(1.0);
+    t
+}
+
+/// Rounding room above a group's starting energy.
+fn slack(t: &EnergyTerms) -> f64 {
+    1e-12 * t.initial.abs().max(1.0)
+}
+
+/// The energy a group of bouncing bodies ends the step with (see [`settle_energy`]).
+fn bounce_target(t: &EnergyTerms, rule: &EnergyRule) -> f64 {
     let target = if rule.friction == 0.0 {
-        a + rule.restitution * rule.restitution * (initial - a)
+        t.a + rule.restitution * rule.restitution * (t.initial - t.a)
     } else {
-        (a + b + c).min(initial)
+        (t.a + t.b + t.c).min(t.initial)
     };
-    share_for(a, b, c, target.min(initial) + slack)
+    target.min(t.initial) + slack(t)
 }
 
 /// Most the restitution impulses may be stretched to reach the energy of the bounce.
 pub const MAX_SHARE: f64 = 2.0;
 
-/// The share `alpha` in [0, MAX_SHARE] whose energy `a + b alpha + c alpha^2` (`c >= 0`)
-/// comes closest to `target` from below, preferring 1 when it is within reach.
-fn share_for(a: f64, b: f64, c: f64, target: f64) -> f64 {
+/// The share `alpha` in [0, `max`] whose energy `a + b alpha + c alpha^2` (`c >= 0`) comes
+/// closest to `target` from below, preferring 1 when it is within reach.
+fn share_for(terms: EnergyTerms, target: f64, max: f64) -> f64 {
+    let EnergyTerms { a, b, c, .. } = terms;
     let at = |x: f64| a + b * x + c * x * x;
     if a > target {
         return 0.0;
     }
-    // The upper root of c x^2 + b x + (a - target) = 0 (a <= target, so it is >= 0).
+    // The upper root of c x^2 + b x + (a - target) = 0 (a <= target, so it is >= 0); the
+    // energy is convex, so every share from 0 to it stays at or below the target.
     let root = if c > 0.0 {
         let discriminant = (b * b - 4.0 * c * (a - target)).max(0.0);
         (-b + discriminant.sqrt()) / (2.0 * c)
@@ -187,16 +253,22 @@ fn share_for(a: f64, b: f64, c: f64, target: f64) -> f64 {
     if (at(1.0) - target).abs() <= 1e-12 * target.abs().max(1.0) {
         return 1.0;
     }
-    root.clamp(0.0, MAX_SHARE)
+    root.clamp(0.0, max)
 }
 
-/// Dynamic bodies joined by manifolds with a bounce this step (union-find), as lists.
+/// Which bodies take part: awake dynamic ones (not the ground).
+fn is_member(i: usize, poses: &[RigidBody]) -> bool {
+    i != GROUND && poses[i].is_awake()
+}
+
+/// Bodies joined by manifolds with a bounce this step, as lists (union-find).
 fn bouncing_groups(contacts: &Contacts, poses: &[RigidBody]) -> Vec<Vec<usize>> {
     let Contacts {
         manifolds,
         constraints,
         points,
         bouncing,
+        ..
     } = *contacts;
     let bounced: Vec<u32> = (bouncing.iter().copied())
         .filter(|&k| {
@@ -210,34 +282,72 @@ fn bouncing_groups(contacts: &Contacts, poses: &[RigidBody]) -> Vec<Vec<usize>> 
     if bounced.is_empty() {
         return Vec::new();
     }
+    let links =
+        (bounced.iter()).map(|&k| (manifolds[k as usize].body1, manifolds[k as usize].body2));
+    let mut seeds = vec![false; poses.len()];
+    for (i, j) in links.clone() {
+        for k in [i, j].into_iter().filter(|&k| is_member(k, poses)) {
+            seeds[k] = true;
+        }
+    }
+    groups_of(poses, links, &seeds)
+}
+
+/// The [`bouncing_groups`] joined with every body they reach through manifolds that pushed
+/// (a point with a normal impulse this step) and joint rows: the bodies a bounce may have
+/// handed energy to.
+fn joined_groups(
+    contacts: &Contacts,
+    poses: &[RigidBody],
+    groups: &[Vec<usize>],
+) -> Vec<Vec<usize>> {
+    let Contacts {
+        manifolds,
+        constraints,
+        points,
+        rows,
+        ..
+    } = *contacts;
+    let pushed = (constraints.iter().zip(manifolds))
+        .filter(|(c, _)| {
+            points[c.points()]
+                .iter()
+                .any(|p| p.max_normal_impulse != 0.0)
+        })
+        .map(|(_, m)| (m.body1, m.body2));
+    let held = rows.iter().map(|r| (r.body1, r.body2));
+    let mut seeds = vec![false; poses.len()];
+    for &i in groups.iter().flatten() {
+        seeds[i] = true;
+    }
+    groups_of(poses, pushed.chain(held), &seeds)
+}
+
+/// The sets of member bodies joined by `links` that hold a body marked in `seeds`, each
+/// listed in ascending order.
+fn groups_of(
+    poses: &[RigidBody],
+    links: impl Iterator<Item = (usize, usize)>,
+    seeds: &[bool],
+) -> Vec<Vec<usize>> {
     let n = poses.len();
-    let dynamic = |i: usize| i != GROUND && poses[i].is_awake();
-    let mut parent: Vec<usize> = (0..n).collect();
-    let mut bouncing_body = vec![false; n];
-    let find = |parent: &mut Vec<usize>, mut x: usize| {
-        while parent[x] != x {
-            parent[x] = parent[parent[x]];
-            x = parent[x];
+    let mut sets = DisjointSets::new(n);
+    for (i, j) in links {
+        if is_member(i, poses) && is_member(j, poses) {
+            sets.join(i, j);
         }
-        x
-    };
-    for &k in &bounced {
-        let m = &manifolds[k as usize];
-        let (i, j) = (m.body1, m.body2);
-        for k in [i, j] {
-            if dynamic(k) {
-                bouncing_body[k] = true;
-            }
-        }
-        if dynamic(i) && dynamic(j) {
-            let (a, b) = (find(&mut parent, i), find(&mut parent, j));
-            parent[a.max(b)] = a.min(b);
-        }
+    }
+    let mut seeded = vec![false; n];
+    for i in (0..n).filter(|&i| seeds[i]) {
+        seeded[sets.root(i)] = true;
     }
     let mut groups: Vec<Vec<usize>> = Vec::new();
     let mut slot = vec![usize::MAX; n];
-    for i in (0..n).filter(|&i| bouncing_body[i]) {
-        let root = find(&mut parent, i);
+    for i in (0..n).filter(|&i| is_member(i, poses)) {
+        let root = sets.root(i);
+        if !seeded[root] {
+            continue;
+        }
         if slot[root] == usize::MAX {
             slot[root] = groups.len();
             groups.push(Vec::new());
@@ -249,17 +359,27 @@ fn bouncing_groups(contacts: &Contacts, poses: &[RigidBody]) -> Vec<Vec<usize>> 
 
 #[cfg(test)]
 mod tests {
-    use super::share_for;
+    use super::{EnergyTerms, MAX_SHARE, share_for};
+
+    fn terms(a: f64, b: f64, c: f64) -> EnergyTerms {
+        EnergyTerms {
+            a,
+            b,
+            c,
+            initial: 0.0,
+        }
+    }
 
     #[test]
     fn share_meets_the_target() {
         let at = |x: f64| 1.0 + 2.0 * x + 3.0 * x * x;
         for target in [3.0, 6.0, 10.0] {
-            let x = share_for(1.0, 2.0, 3.0, target);
+            let x = share_for(terms(1.0, 2.0, 3.0), target, MAX_SHARE);
             assert!((at(x) - target).abs() < 1e-12, "{target}: {x}");
         }
-        assert_eq!(share_for(6.0, 1.0, 1.0, 5.0), 0.0);
-        // Out of reach: stretched at most to MAX_SHARE.
-        assert_eq!(share_for(1.0, 1.0, 1.0, 1e9), super::MAX_SHARE);
+        assert_eq!(share_for(terms(6.0, 1.0, 1.0), 5.0, MAX_SHARE), 0.0);
+        // Out of reach: stretched at most to the limit.
+        assert_eq!(share_for(terms(1.0, 1.0, 1.0), 1e9, MAX_SHARE), MAX_SHARE);
+        assert_eq!(share_for(terms(1.0, 1.0, 1.0), 1e9, 1.0), 1.0);
     }
 }
