@@ -182,6 +182,71 @@ impl Stopwatch {
     }
 }
 
+/// A stage nested in another and entered once per item (a pair's narrow phase inside the
+/// coursework's contact loop), timed by sampling: one call in [`SampledStage::EVERY`] is
+/// timed and the others are estimated from those. Two clock reads per pair were 9 % of
+/// pile-10000's and sparse-10000's step on one thread (perf: `clock_gettime`). The step's
+/// total stays exact: the estimate moves time from the enclosing stage to the nested one.
+#[derive(Debug)]
+pub struct SampledStage {
+    stage: Stage,
+    calls: usize,
+    timed: usize,
+    seconds: f64,
+    /// The stage the unsampled calls were charged to.
+    outer: Option<Stage>,
+}
+
+impl SampledStage {
+    pub const EVERY: usize = 8;
+
+    pub fn new(stage: Stage) -> Self {
+        Self {
+            stage,
+            calls: 0,
+            timed: 0,
+            seconds: 0.0,
+            outer: None,
+        }
+    }
+}
+
+impl Stopwatch {
+    /// Runs `f` as a call of `sampled`'s stage (timed if it is a sampled call).
+    pub fn sample<T>(&mut self, sampled: &mut SampledStage, f: impl FnOnce() -> T) -> T {
+        sampled.calls += 1;
+        if sampled.calls % SampledStage::EVERY != 1 {
+            return f();
+        }
+        let before = self.timings.get(sampled.stage);
+        let outer = self.enter(sampled.stage);
+        let value = f();
+        self.resume(outer);
+        sampled.outer = outer;
+        sampled.timed += 1;
+        sampled.seconds += self.timings.get(sampled.stage) - before;
+        value
+    }
+
+    /// Charges `sampled`'s unsampled calls to its stage, at the mean of the sampled ones, taken
+    /// from the stage they ran under.
+    pub fn settle(&mut self, sampled: &SampledStage) {
+        let Some(outer) = sampled.outer else {
+            return;
+        };
+        // The running stage's time so far, charged: it holds the unsampled calls.
+        if let Some((running, _)) = self.running {
+            self.enter(running);
+        }
+        let unsampled = (sampled.calls - sampled.timed) as f64;
+        let estimate = (sampled.seconds / sampled.timed as f64 * unsampled)
+            .min(self.timings.get(outer))
+            .max(0.0);
+        self.timings.add_to(outer, -estimate);
+        self.timings.add_to(sampled.stage, estimate);
+    }
+}
+
 impl Default for Stopwatch {
     fn default() -> Self {
         Self::new()
@@ -257,6 +322,29 @@ mod tests {
         assert!(t.get(Stage::Integrate) == 0.0);
         let sum = t.get(Stage::NarrowPhase) + t.get(Stage::ContactResolution);
         assert_eq!(t.total(), sum);
+    }
+
+    /// Calls of equal length: the sampled estimate charges the nested stage their whole time
+    /// and the enclosing stage the rest.
+    #[test]
+    fn sampled_calls_are_charged_to_their_stage() {
+        let mut watch = Stopwatch::new();
+        watch.enter(Stage::ContactResolution);
+        let mut narrow = SampledStage::new(Stage::NarrowPhase);
+        let pause = std::time::Duration::from_millis(1);
+        for _ in 0..4 * SampledStage::EVERY {
+            watch.sample(&mut narrow, || std::thread::sleep(pause));
+        }
+        watch.settle(&narrow);
+        let t = watch.finish();
+        let calls = (4 * SampledStage::EVERY) as f64 * 0.001;
+        let nested = t.get(Stage::NarrowPhase);
+        assert!(
+            nested >= calls && nested < 3.0 * calls,
+            "{nested} for {calls}"
+        );
+        assert!(t.get(Stage::ContactResolution) >= 0.0);
+        assert!(t.get(Stage::ContactResolution) < nested);
     }
 
     #[test]

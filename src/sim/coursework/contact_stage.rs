@@ -12,7 +12,7 @@ use crate::sim::narrow_phase::{
 use crate::sim::pair_queue::{PairQueue, PairSource};
 use crate::sim::settings::BroadPhase as BroadPhaseKind;
 use crate::sim::shape::Shape;
-use crate::sim::stats::{Stage, StepStats, Stopwatch};
+use crate::sim::stats::{SampledStage, Stage, StepStats, Stopwatch};
 use crate::sim::step_context::StepContext;
 use rayon::prelude::*;
 
@@ -169,6 +169,9 @@ fn all_pairs(
 ) {
     let Bodies { bodies, shapes } = world;
     let n = bodies.len();
+    let patches = ctx.settings.contact_patches;
+    let mut narrow = SampledStage::new(Stage::NarrowPhase);
+    let mut resolution = SampledStage::new(Stage::ContactResolution);
     for i in 0..n {
         for j in i + 1..n {
             if !may_collide(&bodies[i], &bodies[j]) {
@@ -179,18 +182,21 @@ fn all_pairs(
                 continue;
             }
             stats.narrow_phase_queries += 1;
-            watch.enter(Stage::NarrowPhase);
-            let detection = contact_between(bodies, shapes, i, j, ctx.settings.contact_patches);
+            let detection = watch.sample(&mut narrow, || {
+                contact_between(bodies, shapes, i, j, patches)
+            });
             stats.narrow_phase_fallbacks += detection.fallback as usize;
             if let Some(contact) = detection.contact {
-                watch.enter(Stage::ContactResolution);
-                apply_contact(bodies, (i, j), &contact, &ctx.contact, stats);
-                broad.refresh(i, &bodies[i], shapes);
-                broad.refresh(j, &bodies[j], shapes);
+                watch.sample(&mut resolution, || {
+                    apply_contact(bodies, (i, j), &contact, &ctx.contact, stats);
+                    broad.refresh(i, &bodies[i], shapes);
+                    broad.refresh(j, &bodies[j], shapes);
+                });
             }
-            watch.enter(Stage::BroadPhase);
         }
     }
+    watch.settle(&narrow);
+    watch.settle(&resolution);
 }
 
 /// The narrow phase of every candidate whose boxes overlap after integration, in parallel,
@@ -224,6 +230,7 @@ fn resolve_in_order(
     let Bodies { bodies, shapes } = world;
     let mut moved = vec![false; bodies.len()];
     let mut reached = Reached::default();
+    let mut narrow = SampledStage::new(Stage::NarrowPhase);
     while let Some(((i, j), source)) = queue.pop() {
         let stale = moved[i] || moved[j];
         let kept = match source {
@@ -237,9 +244,10 @@ fn resolve_in_order(
                 if !broad.overlap(i, j) || !flags_may_collide(flags[i], flags[j]) {
                     continue;
                 }
-                let outer = watch.enter(Stage::NarrowPhase);
-                let d = contact_between(bodies, shapes, i, j, ctx.settings.contact_patches);
-                watch.resume(outer);
+                let patches = ctx.settings.contact_patches;
+                let d = watch.sample(&mut narrow, || {
+                    contact_between(bodies, shapes, i, j, patches)
+                });
                 stats.narrow_phase_queries += 1;
                 d
             }
@@ -260,6 +268,7 @@ fn resolve_in_order(
             }
         }
     }
+    watch.settle(&narrow);
     reached
 }
 
