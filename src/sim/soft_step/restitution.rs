@@ -6,8 +6,10 @@
 //! Per-point targets are exact for one point and for points that touch at once, but when a
 //! body lands on one corner and the turn it takes slams another corner down within the same
 //! step, both corners' approaches count the same energy: bouncing both would create energy.
-//! So per group of touching bodies the restitution impulses are scaled back, if needed, until
-//! the group ends the step with no more energy than it began with.
+//! So per group of bodies joined by bouncing manifolds the restitution impulses are scaled
+//! back, if needed, until the group ends the step with no more energy than it began with; and
+//! again over each group with the bodies it pushed or pulled in the step, which may hold
+//! energy the bouncing bodies handed them.
 
 use super::constraint_graph::Colours;
 use super::contact_solver::{
