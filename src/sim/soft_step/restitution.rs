@@ -114,17 +114,17 @@ pub struct EnergyRule {
 /// it when a body's points disagree, as on a tilted landing): `alpha` may then exceed 1, up to
 /// [`MAX_SHARE`].
 ///
-/// Then the same cap over each such group with every body it pushed or pulled this step
-/// ([`joined_groups`]): a body that bounces while it pushes a neighbour has handed that
-/// neighbour energy in the substeps, which its own account alone would let the bounce give
-/// back (a box bouncing at e = 1 while it pushed another gained the mixed scene 1.9e-4 of its
-/// energy in one step at dt 0.04). Only scaled down there, never stretched: where the others
-/// lost energy it changes nothing. Settling the joined groups alone, in one pass, weighed each
-/// bounce against its neighbours' losses to friction, and piles stayed livelier (13 draws of
-/// pile-200 at dt 0.02: one still moving at 15 s, the slowest of the others 11.5 s, against
-/// 11.2 s for all 13 before). With the two passes, 65 draws settle about as before, within
-/// the spread of a chaotic settling: median time to sleep 8.7 s against 8.3 at dt 0.02 (three
-/// against two still moving at 15 s), 8.8 s against 8.8 at dt 0.04 (one against none).
+/// Then the same cap, scaling down only, over each such group with the bodies its bouncing
+/// bodies pushed or pulled this step ([`joined_groups`]): a body that bounces while it pushes a
+/// neighbour has handed that neighbour energy in the substeps, which its own account alone
+/// would let the bounce give back (a box bouncing at e = 1 while it pushed another gained the
+/// mixed scene 1.9e-4 of its energy in one step at dt 0.04; 6.1e-6 with this cap). Only the
+/// bodies they touch, not all they reach through others: in a resting pile that is the whole
+/// pile, whose energy stays flat from step to step, so every small correction of the
+/// restitution pass there read as a gain and was cut, and pile-10000 never fell asleep (64 of
+/// 10,000 at 30 s). Settled on the joined groups alone, in one pass, each bounce was weighed
+/// against its neighbours' friction losses and piles stayed livelier (13 draws of pile-200 at
+/// dt 0.02: one still moving at 15 s).
 pub fn settle_energy(
     contacts: &Contacts,
     poses: &[RigidBody],
@@ -140,7 +140,12 @@ pub fn settle_energy(
     let bounce = |terms: EnergyTerms| share_for(terms, bounce_target(&terms, rule), MAX_SHARE);
     scale_restitution(&groups, bounce, (poses, before, start), rule, bodies);
     let joined = joined_groups(contacts, poses, &groups);
-    let cap = |terms: EnergyTerms| share_for(terms, terms.initial + slack(&terms), 1.0);
+    // Against what the group had before the restitution pass too, where that was more: the
+    // cap is on what the bounces add, and the soft contacts may have pushed bodies apart.
+    let cap = |terms: EnergyTerms| {
+        let target = terms.initial.max(terms.a) + slack(&terms);
+        share_for(terms, target, 1.0)
+    };
     scale_restitution(&joined, cap, (poses, before, start), rule, bodies);
 }
 
@@ -295,8 +300,8 @@ fn bouncing_groups(contacts: &Contacts, poses: &[RigidBody]) -> Vec<Vec<usize>> 
     groups_of(poses, links, &seeds)
 }
 
-/// The [`bouncing_groups`] joined with every body they reach through manifolds that pushed
-/// (a point with a normal impulse this step) and joint rows: the bodies a bounce may have
+/// The [`bouncing_groups`] joined with the bodies their bodies touched through manifolds that
+/// pushed (a point with a normal impulse this step) or joint rows: those a bounce may have
 /// handed energy to.
 fn joined_groups(
     contacts: &Contacts,
@@ -310,6 +315,11 @@ fn joined_groups(
         rows,
         ..
     } = *contacts;
+    let mut seeds = vec![false; poses.len()];
+    for &i in groups.iter().flatten() {
+        seeds[i] = true;
+    }
+    let touches_seed = |&(i, j): &(usize, usize)| (i != GROUND && seeds[i]) || seeds[j];
     let pushed = (constraints.iter().zip(manifolds))
         .filter(|(c, _)| {
             points[c.points()]
@@ -318,11 +328,7 @@ fn joined_groups(
         })
         .map(|(_, m)| (m.body1, m.body2));
     let held = rows.iter().map(|r| (r.body1, r.body2));
-    let mut seeds = vec![false; poses.len()];
-    for &i in groups.iter().flatten() {
-        seeds[i] = true;
-    }
-    groups_of(poses, pushed.chain(held), &seeds)
+    groups_of(poses, pushed.chain(held).filter(touches_seed), &seeds)
 }
 
 /// The sets of member bodies joined by `links` that hold a body marked in `seeds`, each
