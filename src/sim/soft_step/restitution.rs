@@ -138,7 +138,13 @@ pub fn settle_energy(
         return;
     }
     let bounce = |terms: EnergyTerms| share_for(terms, bounce_target(&terms, rule), MAX_SHARE);
-    scale_restitution(&groups, bounce, (poses, before, start), rule, bodies);
+    scale_restitution(
+        &groups,
+        bounce,
+        (poses, before, start),
+        rule.gravity,
+        bodies,
+    );
     let joined = joined_groups(contacts, poses, &groups);
     // Against what the group had before the restitution pass too, where that was more: the
     // cap is on what the bounces add, and the soft contacts may have pushed bodies apart.
@@ -146,7 +152,7 @@ pub fn settle_energy(
         let target = terms.initial.max(terms.a) + slack(&terms);
         share_for(terms, target, 1.0)
     };
-    scale_restitution(&joined, cap, (poses, before, start), rule, bodies);
+    scale_restitution(&joined, cap, (poses, before, start), rule.gravity, bodies);
 }
 
 /// Scales each group's restitution (its bodies' velocities since `before`) by the share `share`
@@ -155,7 +161,7 @@ fn scale_restitution(
     groups: &[Vec<usize>],
     share: impl Fn(EnergyTerms) -> f64 + Sync,
     (poses, before, start): (&[RigidBody], &[(DVec3, DVec3)], &[f64]),
-    rule: &EnergyRule,
+    gravity: DVec3,
     bodies: &mut [SolverBody],
 ) {
     let view = &*bodies;
@@ -163,14 +169,7 @@ fn scale_restitution(
     let shares: Vec<f64> = groups
         .par_iter()
         .with_min_len(16)
-        .map(|members| {
-            share(energy_terms(
-                members,
-                (poses, before, view),
-                start,
-                rule.gravity,
-            ))
-        })
+        .map(|members| share(energy_terms(members, (poses, before, view), start, gravity)))
         .collect();
     for (members, alpha) in groups.iter().zip(shares) {
         if alpha == 1.0 {
@@ -319,16 +318,20 @@ fn joined_groups(
     for &i in groups.iter().flatten() {
         seeds[i] = true;
     }
-    let touches_seed = |&(i, j): &(usize, usize)| (i != GROUND && seeds[i]) || seeds[j];
+    let touches_seed = |(i, j): (usize, usize)| (i != GROUND && seeds[i]) || seeds[j];
+    // The seed test first: most manifolds of a landing touch no bouncing body.
     let pushed = (constraints.iter().zip(manifolds))
-        .filter(|(c, _)| {
-            points[c.points()]
-                .iter()
-                .any(|p| p.max_normal_impulse != 0.0)
+        .filter(|(c, m)| {
+            touches_seed((m.body1, m.body2))
+                && points[c.points()]
+                    .iter()
+                    .any(|p| p.max_normal_impulse != 0.0)
         })
         .map(|(_, m)| (m.body1, m.body2));
-    let held = rows.iter().map(|r| (r.body1, r.body2));
-    groups_of(poses, pushed.chain(held).filter(touches_seed), &seeds)
+    let held = (rows.iter())
+        .map(|r| (r.body1, r.body2))
+        .filter(|&pair| touches_seed(pair));
+    groups_of(poses, pushed.chain(held), &seeds)
 }
 
 /// The sets of member bodies joined by `links` that hold a body marked in `seeds`, each
