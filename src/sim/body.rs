@@ -25,7 +25,10 @@ pub struct RigidBody {
     /// Resting with its island (soft-step solver): not integrated, not solved, until a
     /// contact with a moving body, a constraint to one, a grab or a settings change wakes it.
     pub asleep: bool,
-    /// Seconds the body has moved slower than the sleep threshold (soft-step solver).
+    /// Moved at the sleep speed or faster in its last step, or has not been measured since it
+    /// was made or woken (soft-step solver): it wakes sleeping bodies it comes near.
+    pub moving: bool,
+    /// Seconds the body and its island have rested (soft-step solver).
     pub sleep_time: f64,
     pub inverse_mass: f64,
     /// Index of the body's shape in [`crate::World::shapes`].
@@ -74,8 +77,16 @@ impl RigidBody {
             inverse_inertia: SymMat3::from_mat3(inverse_inertia),
             quarantined: false,
             asleep: false,
+            moving: true,
             sleep_time: 0.0,
         }
+    }
+
+    /// Awake and unrested, as a body just made.
+    pub fn wake(&mut self) {
+        self.asleep = false;
+        self.moving = true;
+        self.sleep_time = 0.0;
     }
 
     /// The ground plane's stand-in in contact resolution: immovable, at rest.

@@ -340,8 +340,7 @@ impl SoftStep {
         let bodies = &mut *scene.bodies;
         if changed || !ctx.settings.sleep {
             for b in bodies.iter_mut().filter(|b| b.asleep) {
-                b.asleep = false;
-                b.sleep_time = 0.0;
+                b.wake();
             }
         } else if let Some(grab) = scene.grab {
             let touching = self.contacts.pairs();

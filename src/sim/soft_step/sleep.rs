@@ -1,9 +1,13 @@
-//! Sleeping (after Box2D): a body whose speed, counting its spin at its rim and weighed by
-//! [`POSITION_SLEEP_FACTOR`], stays under [`SLEEP_SPEED`] gathers sleep time; an island (bodies
-//! joined by touching contacts and distance constraints) in which every body has slept for
-//! [`TIME_TO_SLEEP`] goes to sleep and costs nothing until something wakes it: contact with a
-//! moving body, a constraint to one, a grab, or a change of settings. A time window, not an
-//! instantaneous speed: a pendulum at its apex is still for an instant only.
+//! Sleeping: an island (bodies joined by touching contacts and distance constraints) whose
+//! kinetic energy stays under that of its mass moving at [`SLEEP_SPEED`], none of its bodies
+//! faster than [`SLEEP_SPEED_CAP`], for [`TIME_TO_SLEEP`] goes to sleep and costs nothing until
+//! something wakes it: contact with a moving body, a constraint to one, a grab, or a change of
+//! settings. A body's speed counts its spin at its rim and is weighed by
+//! [`POSITION_SLEEP_FACTOR`]. A time window, not an instantaneous speed: a pendulum at its apex
+//! is still for an instant only. The island's energy, not each body's speed as in Box2D: in a
+//! pile of ten thousand one body rocking at 0.1 units/s on a point its neighbour's manifold
+//! keeps gaining and losing would keep every other awake (pile-10000 was still awake at 30 s
+//! in three draws of four; asleep at 13-16 s with the island's energy).
 //!
 //! The speed is that of the step's displacement, as Rapier measures it, not of the velocities
 //! kept: those carry what the last Gauss-Seidel pass left unconverged in a deep pile, which the
@@ -17,8 +21,12 @@ use crate::sim::body::RigidBody;
 use crate::sim::constraint::DistanceConstraint;
 use rayon::prelude::*;
 
-/// Speed (units/s) under which a body counts as resting.
+/// Speed (units/s) at which an island's mass, moving together, has the most kinetic energy
+/// a resting island may have; a body faster than it wakes the sleepers it comes near.
 pub const SLEEP_SPEED: f64 = 0.05;
+/// Speed (units/s) above which a body keeps its island awake whatever the island's energy: a
+/// body that slides is not put to sleep with a resting pile it touches.
+pub const SLEEP_SPEED_CAP: f64 = 4.0 * SLEEP_SPEED;
 /// Weight of the step's displacement against [`SLEEP_SPEED`]: "position correction is not as
 /// important for sleep as true velocity" (Box2D v3).
 pub const POSITION_SLEEP_FACTOR: f64 = 0.5;
@@ -32,6 +40,9 @@ pub struct Islands {
     sets: DisjointSets,
     /// Least sleep time in each island (by root).
     least: Vec<f64>,
+    /// Each island's mass and `sum m v^2` (by root).
+    mass: Vec<f64>,
+    energy: Vec<f64>,
 }
 
 impl Islands {
@@ -39,6 +50,10 @@ impl Islands {
         self.sets.reset(n);
         self.least.clear();
         self.least.resize(n, f64::INFINITY);
+        for sums in [&mut self.mass, &mut self.energy] {
+            sums.clear();
+            sums.resize(n, 0.0);
+        }
     }
 }
 
@@ -67,11 +82,11 @@ pub fn settle(
     touching: impl Iterator<Item = (usize, usize)>,
     dt: f64,
 ) {
-    // One pass over the bodies, which keeps the awake ones' indices and times for the islands:
-    // three passes over 100,000 bodies of 300 bytes took scatter-100000's sleeping from 5-6.5
-    // to 8.8-9.6 ms a step.
-    let awake: Vec<(usize, f64)> = bodies
-        .par_iter_mut()
+    // One pass over the bodies, which keeps the awake ones' indices, speeds and masses for the
+    // islands: three passes over 100,000 bodies of 300 bytes took scatter-100000's sleeping
+    // from 5-6.5 to 8.8-9.6 ms a step.
+    let awake: Vec<(usize, f64, f64)> = bodies
+        .par_iter()
         .zip(start.par_iter())
         .enumerate()
         .with_min_len(1024)
@@ -80,25 +95,33 @@ pub fn settle(
             let turn = (q0.conjugate() * b.orientation).normalize();
             let angle = 2.0 * turn.xyz().length().atan2(turn.w.abs());
             let moved = (b.position - p0).length() + angle * radii[b.shape];
-            let speed = POSITION_SLEEP_FACTOR * moved / dt;
-            b.sleep_time = if speed < SLEEP_SPEED {
-                b.sleep_time + dt
-            } else {
-                0.0
-            };
-            (i, b.sleep_time)
+            (i, POSITION_SLEEP_FACTOR * moved / dt, b.mass)
         })
         .collect();
     islands.reset(bodies.len());
     for (i, j) in links(bodies, constraints, touching) {
         islands.sets.join(i, j);
     }
-    // An island rests when its least rested body does.
-    for &(i, time) in &awake {
+    // Each island's mass and twice its kinetic energy (of the speeds above).
+    for &(i, speed, mass) in &awake {
         let root = islands.sets.root(i);
-        islands.least[root] = islands.least[root].min(time);
+        islands.energy[root] += mass * speed * speed;
+        islands.mass[root] += mass;
     }
-    for &(i, _) in &awake {
+    for &(i, speed, _) in &awake {
+        let root = islands.sets.root(i);
+        let b = &mut bodies[i];
+        b.moving = speed >= SLEEP_SPEED;
+        let calm = islands.energy[root] < islands.mass[root] * SLEEP_SPEED * SLEEP_SPEED;
+        b.sleep_time = if calm && speed < SLEEP_SPEED_CAP {
+            b.sleep_time + dt
+        } else {
+            0.0
+        };
+        islands.least[root] = islands.least[root].min(b.sleep_time);
+    }
+    // An island rests when its least rested body does.
+    for &(i, _, _) in &awake {
         let root = islands.sets.root(i);
         if islands.least[root] >= TIME_TO_SLEEP {
             let b = &mut bodies[i];
@@ -131,8 +154,7 @@ pub fn wake(
         if !bodies[i].asleep {
             continue;
         }
-        bodies[i].asleep = false;
-        bodies[i].sleep_time = 0.0;
+        bodies[i].wake();
         stack.extend(neighbours[i].iter().copied().filter(|&j| bodies[j].asleep));
     }
     true
@@ -148,7 +170,7 @@ pub fn disturbed(
     pairs: &[(u32, u32)],
 ) -> Vec<usize> {
     let mut out = Vec::new();
-    let moving = |b: &RigidBody| b.is_awake() && b.sleep_time == 0.0;
+    let moving = |b: &RigidBody| b.is_awake() && b.moving;
     let mut wake = |(i, j): (usize, usize), disturbs: &dyn Fn(&RigidBody) -> bool| {
         let (a, b) = (&bodies[i], &bodies[j]);
         if a.asleep && disturbs(b) {
@@ -180,15 +202,8 @@ mod tests {
     use super::*;
     use glam::{DMat3, DQuat, DVec3};
 
-    /// Two bodies alone, one creeping at 0.09 units/s and one at 0.11: weighed by half, as Box2D
-    /// v3 and Rapier weigh a step's displacement, the first rests and sleeps after
-    /// [`TIME_TO_SLEEP`], the second never gathers sleep time.
-    #[test]
-    fn displacement_counts_half_against_the_sleep_speed() {
-        let dt = 0.01;
-        let speeds = [0.09, 0.11];
-        let mut bodies: Vec<RigidBody> = speeds
-            .iter()
+    fn resting_bodies(n: usize) -> Vec<RigidBody> {
+        (0..n)
             .map(|_| {
                 RigidBody::new(
                     0,
@@ -200,24 +215,57 @@ mod tests {
                     DQuat::IDENTITY,
                 )
             })
-            .collect();
-        let mut islands = Islands::default();
+            .collect()
+    }
+
+    /// Moves each body along x at its speed for 1.2 [`TIME_TO_SLEEP`], the pairs `touching`
+    /// held together, settling after each step of 0.01 s.
+    fn settle_moving(bodies: &mut [RigidBody], speeds: &[f64], touching: &[(usize, usize)]) {
+        let (dt, mut islands) = (0.01, Islands::default());
         for _ in 0..(1.2 * TIME_TO_SLEEP / dt).ceil() as usize {
             let start: Vec<_> = bodies.iter().map(|b| (b.position, b.orientation)).collect();
             for (b, v) in bodies.iter_mut().zip(speeds) {
-                b.position.x += v * dt;
+                if !b.asleep {
+                    b.position.x += v * dt;
+                }
             }
-            settle(
-                &mut islands,
-                &mut bodies,
-                &[1.0],
-                &start,
-                &[],
-                std::iter::empty(),
-                dt,
-            );
+            let links = touching.iter().copied();
+            settle(&mut islands, bodies, &[1.0], &start, &[], links, dt);
         }
+    }
+
+    /// Two bodies alone, one creeping at 0.09 units/s and one at 0.11: weighed by half, as Box2D
+    /// v3 and Rapier weigh a step's displacement, the first rests and sleeps after
+    /// [`TIME_TO_SLEEP`], the second never gathers sleep time.
+    #[test]
+    fn displacement_counts_half_against_the_sleep_speed() {
+        let mut bodies = resting_bodies(2);
+        settle_moving(&mut bodies, &[0.09, 0.11], &[]);
         assert!(bodies[0].asleep, "0.09 units/s did not sleep");
         assert!(!bodies[1].asleep && bodies[1].sleep_time == 0.0);
+        assert!(!bodies[0].moving && bodies[1].moving);
+    }
+
+    /// An island of 100 resting bodies sleeps with one of them rocking at 0.3 units/s (half of
+    /// it counted: 0.15, three times the sleep speed, but the island's energy is that of its mass
+    /// at 0.015); the same body alone never sleeps, and one at 0.5 units/s (0.25, above
+    /// [`SLEEP_SPEED_CAP`]) keeps the whole island awake.
+    #[test]
+    fn an_island_sleeps_on_its_energy_unless_a_body_is_fast() {
+        let chain: Vec<(usize, usize)> = (1..100).map(|i| (i - 1, i)).collect();
+        for (speed, sleeps) in [(0.3, true), (0.5, false)] {
+            let mut bodies = resting_bodies(100);
+            let mut speeds = vec![0.0; 100];
+            speeds[42] = speed;
+            settle_moving(&mut bodies, &speeds, &chain);
+            assert!(
+                bodies.iter().all(|b| b.asleep == sleeps),
+                "one body at {speed} units/s"
+            );
+            assert!(bodies[42].moving && !bodies[41].moving);
+        }
+        let mut alone = resting_bodies(1);
+        settle_moving(&mut alone, &[0.3], &[]);
+        assert!(!alone[0].asleep);
     }
 }
