@@ -515,9 +515,6 @@ mod tests {
         }
     }
 
-    /// Box pairs in contact at random poses, one box with its centre of mass off its centre (a
-    /// tetrahedron counted twice): the separating-axis path finds the normal and the depth that
-    /// GJK and EPA find on the same hulls.
     /// The gap along any axis is a lower bound of the hulls' distance (parry's), so a pair
     /// skipped on it has no manifold: random shapes, poses and cached axes.
     #[test]
@@ -556,6 +553,9 @@ mod tests {
         assert!(skipped > 300, "{skipped}");
     }
 
+    /// Box pairs in contact at random poses, one box with its centre of mass off its centre (a
+    /// tetrahedron counted twice): the separating-axis path finds the normal and the depth that
+    /// GJK and EPA find on the same hulls.
     #[test]
     fn box_pairs_agree_with_the_hull_path() {
         use crate::scene::assets;
