@@ -154,7 +154,7 @@ fn piles_of_a_thousand_and_ten_thousand_come_to_rest_and_sleep() {
 /// deepest contact then under 1 % of the smallest body. Soft contacts hold a load like springs,
 /// sinking by load / stiffness; with the preset's four substeps at dt 0.04 the contacts were
 /// clamped to 18.75 Hz and the pile sank to 1.4 % (0.9-1.9 % over 13 nearby draws); a step
-/// with contacts now takes seven, and they reach 30 Hz. Several draws because one pile's
+/// with contacts now takes eight, and they reach 37.5 Hz. Several draws because one pile's
 /// settling is chaotic: over 65 draws the time to sleep spreads from 7 to 14 s, and a change
 /// that leaves that spread as it was moves a single draw's by seconds.
 #[test]
@@ -198,11 +198,11 @@ fn piles_rest_without_sinking_at_the_largest_step() {
 }
 
 /// A box dropped on the ground: its steps in the air take the preset's four substeps, and at
-/// dt 0.04 those with contacts take seven (each at most 1/160 s); at dt 0.02 four are short
+/// dt 0.04 those with contacts take eight (each at most 1/200 s); at dt 0.02 four are short
 /// enough throughout. The step's statistics say how many it took.
 #[test]
 fn steps_with_contacts_take_substeps_short_enough_for_them() {
-    for (dt, with_contacts) in [(0.04, 7), (0.02, 4)] {
+    for (dt, with_contacts) in [(0.04, 8), (0.02, 4)] {
         let mut world = boxes(1, awake(dt));
         world.bodies[0].position.y += 5.0;
         let mut seen = std::collections::BTreeSet::new();
@@ -660,7 +660,7 @@ fn trajectory(world: &mut World, steps: usize) -> Vec<f64> {
 fn results_do_not_depend_on_the_thread_count() {
     // pile-1000 has colours of more than 256 contacts, which are solved in parallel; chain-1000
     // has 100 chains, whose joint groups are solved in parallel. At dt 0.04 the steps with
-    // contacts take seven substeps and the others four.
+    // contacts take eight substeps and the others four.
     for (scene, steps, dt) in [
         ("pile-120", 150, 0.02),
         ("pile-1000", 80, 0.02),

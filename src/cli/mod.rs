@@ -50,7 +50,7 @@ pub struct SettingsArgs {
     #[arg(long)]
     pub contact_patches: bool,
     /// Substeps per step (the soft step takes more in a step with contacts where N would make
-    /// them longer than 1/160 s).
+    /// them longer than 1/200 s).
     #[arg(long, value_name = "N")]
     pub substeps: Option<u32>,
     /// Rotation integrator.

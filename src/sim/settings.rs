@@ -122,7 +122,7 @@ pub struct Settings {
     /// Substeps per step, each of `time_step / substeps` (Macklin et al. 2019). The coursework
     /// solver repeats its whole update; the soft-step solver detects contacts once per step and
     /// solves and integrates in substeps, and takes more in a step with contacts where these
-    /// are longer than 1/160 s (seven at dt 0.04), so its contacts keep their stiffness.
+    /// are longer than 1/200 s (eight at dt 0.04), so its contacts keep their stiffness.
     pub substeps: u32,
     pub rotation_integrator: RotationIntegrator,
     /// Islands that stay slower than the sleep threshold for half a second sleep until
