@@ -156,7 +156,7 @@ impl Default for Settings {
 
 impl Settings {
     /// The `--accurate` preset: tumble's soft-step solver, 4 substeps (more in a step with
-    /// contacts at dt over 0.025, see [`Settings::substeps`]), the angular-momentum
+    /// contacts at dt over 0.02, see [`Settings::substeps`]), the angular-momentum
     /// rotation integrator, friction 0.5, bounces only for impacts faster than 0.5 units/s
     /// (chosen by `tumble bench accuracy`; see docs/accuracy.md).
     pub fn accurate() -> Self {

@@ -662,7 +662,7 @@ fn world_rows(ui: &mut egui::Ui, lane: &Lane) {
         "deepest penetration",
         format!("{:.4}", last.max_penetration),
     );
-    // The soft step takes more than the setting's where contacts need them (dt over 0.025).
+    // The soft step takes more than the setting's where contacts need them (dt over 0.02).
     stat(ui, "substeps", format!("{}", last.substeps));
     if !world.constraints.is_empty() {
         stat(
