@@ -202,7 +202,7 @@ impl Substeps {
         // pass holds a stack of five still (measured at dt 0.04 with four substeps: drift 5e-4 in
         // 10 s awake, 2e-3 with one pass). Box2D v3.1 clamps at an eighth with one relax pass:
         // twice the sag under load (the top of a stack of ten sank by 0.18 at dt = 0.04 that
-        // way, 0.08 with the clamp at 3/16 and four substeps, 0.033 with seven).
+        // way, 0.08 with the clamp at 3/16 and four substeps, 0.033 with seven at 30 Hz).
         let clamp = CONTACT_RATE_FRACTION / h;
         let contact_hertz = CONTACT_HERTZ.min(clamp);
         let static_hertz = (2.0 * contact_hertz).min(STATIC_RATE_FRACTION / h);
