@@ -47,8 +47,9 @@ use solver_body::SolverBody;
 /// of [`Substeps::new`] allows at the preset's four substeps of dt 0.02. Box2D's 30 Hz sagged a
 /// third more under load: pile-200's deepest contact at rest 0.0166-0.0176 units against
 /// 0.0103-0.0118 (medians of 130 draws at each of dt 0.04, 0.02, 0.01), the tower's drift
-/// 0.00145 against 0.00102 at dt 0.02; piles settle as soon (by 10 s: 97, 111, 111 of 130
-/// against 110, 107, 107), at no cost at dt 0.02 and below and an eighth substep at dt 0.04.
+/// 0.00145 against 0.00102 at dt 0.02; piles settle as soon (asleep by 10 s: 110, 107, 107 of
+/// 130, against 97, 111, 111 at 30 Hz), at no cost at dt 0.02 and below and an eighth substep at
+/// dt 0.04.
 const CONTACT_HERTZ: f64 = 37.5;
 /// Stiffest contacts between bodies, as a fraction of the substep rate (see [`Substeps::new`]).
 const CONTACT_RATE_FRACTION: f64 = 0.1875;
