@@ -102,14 +102,14 @@ pub fn settle(
     for (i, j) in links(bodies, constraints, touching) {
         islands.sets.join(i, j);
     }
-    // Each island's mass and twice its kinetic energy (of the speeds above).
-    for &(i, speed, mass) in &awake {
-        let root = islands.sets.root(i);
+    // Each island's mass and twice its kinetic energy (of the speeds above); each body's root
+    // found once.
+    let roots: Vec<usize> = awake.iter().map(|&(i, ..)| islands.sets.root(i)).collect();
+    for (&(_, speed, mass), &root) in awake.iter().zip(&roots) {
         islands.energy[root] += mass * speed * speed;
         islands.mass[root] += mass;
     }
-    for &(i, speed, _) in &awake {
-        let root = islands.sets.root(i);
+    for (&(i, speed, _), &root) in awake.iter().zip(&roots) {
         let b = &mut bodies[i];
         b.moving = speed >= SLEEP_SPEED;
         let calm = islands.energy[root] < islands.mass[root] * SLEEP_SPEED * SLEEP_SPEED;
@@ -121,8 +121,7 @@ pub fn settle(
         islands.least[root] = islands.least[root].min(b.sleep_time);
     }
     // An island rests when its least rested body does.
-    for &(i, _, _) in &awake {
-        let root = islands.sets.root(i);
+    for (&(i, ..), &root) in awake.iter().zip(&roots) {
         if islands.least[root] >= TIME_TO_SLEEP {
             let b = &mut bodies[i];
             b.asleep = true;
