@@ -49,8 +49,8 @@ pub struct SettingsArgs {
     /// Contacts act at the centroid of the contact patch instead of one deepest point.
     #[arg(long)]
     pub contact_patches: bool,
-    /// Substeps per step (the soft step takes more in a step with contacts where N would make
-    /// them longer than 1/200 s).
+    /// Substeps per step (the soft step takes more in a step that begins with contacts touching
+    /// where N would make them longer than 1/200 s).
     #[arg(long, value_name = "N")]
     pub substeps: Option<u32>,
     /// Rotation integrator.

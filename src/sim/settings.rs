@@ -121,8 +121,9 @@ pub struct Settings {
     pub contact_patches: bool,
     /// Substeps per step, each of `time_step / substeps` (Macklin et al. 2019). The coursework
     /// solver repeats its whole update; the soft-step solver detects contacts once per step and
-    /// solves and integrates in substeps, and takes more in a step with contacts where these
-    /// are longer than 1/200 s (eight at dt 0.04), so its contacts keep their stiffness.
+    /// solves and integrates in substeps, and takes more in a step that begins with contacts
+    /// touching where these are longer than 1/200 s (eight at dt 0.04), so its contacts keep
+    /// their stiffness.
     pub substeps: u32,
     pub rotation_integrator: RotationIntegrator,
     /// Islands that stay slower than the sleep threshold for half a second sleep until

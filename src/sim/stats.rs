@@ -277,8 +277,9 @@ pub struct StepStats {
     pub budget_hit: bool,
     /// Bodies asleep at the end of the step (soft-step solver).
     pub asleep: usize,
-    /// Substeps the step took: the setting's count, or for the soft step more where it has
-    /// contacts and its substeps would be longer than 1/200 s; 0 for a step skipped at rest.
+    /// Substeps the step took: the setting's count, or for the soft step more where it begins
+    /// with contacts touching and its substeps would be longer than 1/200 s; 0 for a step
+    /// skipped at rest.
     pub substeps: u32,
     /// Bodies frozen this step because their state went non-finite or absurd.
     pub quarantined: Vec<usize>,
