@@ -9,16 +9,10 @@ use super::solver_body::SolverBody;
 use rayon::prelude::*;
 use std::marker::PhantomData;
 use std::ops::Range;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 /// Colours tried before a constraint goes to the overflow run (solved alone, last).
 const COLOURS: usize = 64;
-
-/// Colours smaller than this are solved on the calling thread (same order, same result). A
-/// manifold's pass takes about 0.2 us, and handing half a colour to a sleeping worker costs
-/// about 10 us here: pile-200 at dt 0.04 on two threads (colours of 20 to 150 manifolds, four
-/// passes each per substep) took 0.60-0.74 s for 250 steps with 64, 0.42-0.56 with 256 (five
-/// alternating runs each).
-const PARALLEL_COLOUR: usize = 256;
 
 /// Runs of the (reordered) manifolds, one per colour, the overflow last.
 #[derive(Debug, Clone, Default)]
@@ -92,19 +86,18 @@ impl Colours {
     }
 
     /// Runs `f` on every constraint, colour after colour (the constraints are in colour order,
-    /// like the manifolds they were made from); a colour's constraints in parallel when there
-    /// are enough of them. `f` may touch only its constraint's bodies and points.
+    /// like the manifolds they were made from); see [`Colours::run`]. `f` may touch only its
+    /// constraint's bodies and points.
     pub fn for_each<C: Send>(&self, constraints: &mut [C], f: impl Fn(&mut C) + Sync) {
-        for (k, run) in self.runs.iter().enumerate() {
-            let Some(slice) = constraints.get_mut(run.clone()) else {
-                continue;
-            };
-            if self.in_parallel(k, slice.len()) {
-                slice.par_iter_mut().with_min_len(16).for_each(&f);
-            } else {
-                slice.iter_mut().for_each(&f);
-            }
-        }
+        let shared = Shared::new(constraints);
+        let runs = &self.runs;
+        // SAFETY: each constraint is one run's, and `run` hands each place of a run to one call.
+        let each = |k: usize, places: Range<usize>| {
+            let start = runs[k].start;
+            let slice = unsafe { shared.slice(start + places.start..start + places.end) };
+            slice.iter_mut().for_each(&f);
+        };
+        self.run(|k| runs[k].len(), each);
     }
 
     /// [`Colours::for_each`] on the constraints at `selected` (strictly increasing indices)
@@ -119,26 +112,113 @@ impl Colours {
             selected.windows(2).all(|w| w[0] < w[1]),
             "selection not increasing"
         );
+        let bounds: Vec<usize> = (self.runs.iter())
+            .map(|run| selected.partition_point(|&i| (i as usize) < run.start))
+            .chain(std::iter::once(selected.len()))
+            .collect();
         let shared = Shared::new(constraints);
         // SAFETY: the indices are distinct, so each constraint has one user.
-        let each = |&i: &u32| f(unsafe { shared.get_mut(i as usize) });
-        for (k, run) in self.runs.iter().enumerate() {
-            let from = selected.partition_point(|&i| (i as usize) < run.start);
-            let to = selected.partition_point(|&i| (i as usize) < run.end);
-            let chosen = &selected[from..to];
-            if self.in_parallel(k, chosen.len()) {
-                chosen.par_iter().with_min_len(16).for_each(each);
-            } else {
-                chosen.iter().for_each(each);
-            }
+        let each = |k: usize, places: Range<usize>| {
+            let chosen = &selected[bounds[k] + places.start..bounds[k] + places.end];
+            chosen
+                .iter()
+                .for_each(|&i| f(unsafe { shared.get_mut(i as usize) }));
+        };
+        self.run(|k| bounds[k + 1] - bounds[k], each);
+    }
+
+    /// Calls `each(k, places)` over the places `0..len(k)` of every run `k`, run after run. With
+    /// several threads and enough to do, every thread of the pool takes an equal share of each
+    /// colour and waits for the others at a barrier before the next ([`SpinBarrier`]); the
+    /// overflow run, whose constraints may share bodies, goes on one thread at the end. A
+    /// colour's constraints share no moving body, so the shares give the bits of one thread.
+    ///
+    /// One broadcast per pass, not a fork per colour: a manifold's pass takes about 0.2 us, and
+    /// a fork wakes a sleeping worker and waits for it, about 10 us here, more than a small
+    /// colour takes. Forked per colour, colours under 256 manifolds ran on one thread (pile-200
+    /// at dt 0.04 took 0.42-0.56 s for 250 steps that way, 0.60-0.74 with 64), which was every
+    /// colour of a pile of a few hundred bodies; with the broadcast the soft step's solve stage
+    /// of pile-200 (dt 0.02, 500 steps) takes 0.20 against 0.26 ms a step on two threads, and
+    /// pile-1000's 0.95 against 1.28.
+    fn run(&self, len: impl Fn(usize) -> usize + Sync, each: impl Fn(usize, Range<usize>) + Sync) {
+        let alone = self.runs.len() - usize::from(self.overflow);
+        let total: usize = (0..alone).map(&len).sum();
+        let threads = rayon::current_num_threads();
+        if threads < 2 || total < PARALLEL_PASS {
+            (0..alone).for_each(|k| each(k, 0..len(k)));
+        } else {
+            let barrier = SpinBarrier::new(threads);
+            rayon::broadcast(|ctx| {
+                let (t, n) = (ctx.index(), ctx.num_threads());
+                let _release = barrier.released_on_panic();
+                for k in 0..alone {
+                    let count = len(k);
+                    each(k, count * t / n..count * (t + 1) / n);
+                    barrier.wait();
+                }
+            });
+        }
+        if alone < self.runs.len() {
+            each(alone, 0..len(alone));
+        }
+    }
+}
+
+/// Passes over fewer constraints than this run on one thread: a barrier per colour costs
+/// about a microsecond, and a pass of a few dozen manifolds takes only a few.
+const PARALLEL_PASS: usize = 64;
+
+/// A barrier for the threads of one broadcast: each waits until all have arrived, yielding its
+/// core meanwhile: the colours between barriers take microseconds, less than a sleep and a
+/// wake-up, and a core shared with other work (three simulations at once on two cores) is
+/// handed over. Spinning instead of yielding took that case from 2.0-2.1 to 2.2-2.6 s
+/// (three runs of pile-1000 at once, 300 steps each), yielding to 2.2; one run alone is as
+/// fast either way. A thread that panics opens it for good, so the others finish and the
+/// broadcast passes the panic on instead of hanging.
+struct SpinBarrier {
+    threads: usize,
+    arrived: AtomicUsize,
+    generation: AtomicUsize,
+    open: AtomicBool,
+}
+
+impl SpinBarrier {
+    fn new(threads: usize) -> Self {
+        Self {
+            threads,
+            arrived: AtomicUsize::new(0),
+            generation: AtomicUsize::new(0),
+            open: AtomicBool::new(false),
         }
     }
 
-    /// Whether run `k` with `len` constraints to solve goes to several threads: not the
-    /// overflow, nor a small colour.
-    fn in_parallel(&self, k: usize, len: usize) -> bool {
-        let alone = self.overflow && k + 1 == self.runs.len();
-        !alone && len >= PARALLEL_COLOUR
+    fn wait(&self) {
+        let generation = self.generation.load(Ordering::Acquire);
+        if self.arrived.fetch_add(1, Ordering::AcqRel) + 1 == self.threads {
+            self.arrived.store(0, Ordering::Relaxed);
+            self.generation.fetch_add(1, Ordering::Release);
+            return;
+        }
+        while self.generation.load(Ordering::Acquire) == generation
+            && !self.open.load(Ordering::Acquire)
+        {
+            std::thread::yield_now();
+        }
+    }
+}
+
+impl SpinBarrier {
+    /// A guard that opens the barrier if its thread unwinds.
+    fn released_on_panic(&self) -> impl Drop + '_ {
+        struct Release<'a>(&'a AtomicBool);
+        impl Drop for Release<'_> {
+            fn drop(&mut self) {
+                if std::thread::panicking() {
+                    self.0.store(true, Ordering::Release);
+                }
+            }
+        }
+        Release(&self.open)
     }
 }
 
@@ -295,8 +375,8 @@ mod tests {
         *value = *value * 1.000_000_1 + k as f64;
     }
 
-    /// Colour by colour, in parallel within the large colours, gives the bits of one pass in
-    /// order, over all constraints and over a selection of them.
+    /// Colour by colour, each colour shared among the threads, gives the bits of one pass in
+    /// order, over all constraints and over a selection of them, on two threads and on three.
     #[test]
     fn colours_run_constraints_as_one_pass_in_order_would() {
         let (bodies, count) = (3000, 12_000);
@@ -314,15 +394,15 @@ mod tests {
             .collect();
         let mut colours = Colours::default();
         colours.colour(&mut manifolds, bodies, |i| moving[i]);
-        assert!(colours.runs.iter().any(|r| r.len() >= 2 * PARALLEL_COLOUR));
-        assert!(colours.overflow && colours.runs.last().unwrap().len() >= PARALLEL_COLOUR);
+        assert!(colours.runs.len() > 10 && count >= 100 * PARALLEL_PASS);
+        assert!(colours.overflow && colours.runs.last().unwrap().len() >= 2);
         let ends = |k: usize| [manifolds[k].body1, manifolds[k].body2];
         let moved = |b: &usize| *b != GROUND && moving[*b];
         let mut constraints: Vec<usize> = (0..count).collect();
         let selected: Vec<u32> = (0..count as u32).filter(|k| k % 3 != 1).collect();
-        let run = |selection: Option<&[u32]>, constraints: &mut [usize]| {
+        let run = |selection: Option<&[u32]>, constraints: &mut [usize], threads: usize| {
             let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(2)
+                .num_threads(threads)
                 .build()
                 .unwrap();
             let mut values = vec![1.0; bodies];
@@ -349,7 +429,34 @@ mod tests {
         let all = in_order(&mut (0..count));
         let some = in_order(&mut selected.iter().map(|&k| k as usize));
         assert!(all != some);
-        assert!(run(None, &mut constraints) == all);
-        assert!(run(Some(&selected), &mut constraints) == some);
+        for threads in [2, 3] {
+            assert!(run(None, &mut constraints, threads) == all);
+            assert!(run(Some(&selected), &mut constraints, threads) == some);
+        }
+    }
+
+    /// A constraint that panics on one thread of a shared colour ends the pass with the panic,
+    /// not with the other threads waiting for it at the colour's barrier.
+    #[test]
+    fn a_panic_in_a_shared_colour_is_passed_on() {
+        let (bodies, count) = (500, 2_000);
+        let mut manifolds: Vec<Manifold> = (0..count)
+            .map(|k| Manifold::new(k % bodies, (k * 7 + 1) % bodies, DVec3::Y, &[]))
+            .collect();
+        let mut colours = Colours::default();
+        colours.colour(&mut manifolds, bodies, |_| true);
+        let mut constraints: Vec<usize> = (0..count).collect();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            pool.install(|| {
+                colours.for_each(&mut constraints, |&mut k| {
+                    assert!(k != 777, "constraint 777")
+                });
+            })
+        }));
+        assert!(outcome.is_err());
     }
 }
