@@ -129,7 +129,7 @@ impl Colours {
 
     /// Calls `each(k, places)` over the places `0..len(k)` of every run `k`, run after run. With
     /// several threads and enough to do, every thread of the pool takes an equal share of each
-    /// colour and waits for the others at a barrier before the next ([`SpinBarrier`]); the
+    /// colour and waits for the others at a barrier before the next ([`ColourBarrier`]); the
     /// overflow run, whose constraints may share bodies, goes on one thread at the end. A
     /// colour's constraints share no moving body, so the shares give the bits of one thread.
     ///
@@ -155,7 +155,7 @@ impl Colours {
         if threads < 2 {
             (0..alone).for_each(|k| each(k, 0..len(k)));
         } else {
-            let barrier = SpinBarrier::new(threads);
+            let barrier = ColourBarrier::new(threads);
             rayon::broadcast(|ctx| {
                 let (t, n) = (ctx.index(), ctx.num_threads());
                 let _release = barrier.released_on_panic();
@@ -172,8 +172,8 @@ impl Colours {
     }
 }
 
-/// Passes over fewer constraints than this run on one thread: a barrier per colour costs
-/// about a microsecond, and a pass of a few dozen manifolds takes only a few.
+/// Passes over fewer constraints than this run on one thread: the broadcast and a barrier per
+/// colour cost microseconds, as much as a pass of a few dozen manifolds.
 const PARALLEL_PASS: usize = 64;
 
 /// A barrier for the threads of one broadcast: each waits until all have arrived, yielding its
@@ -183,14 +183,14 @@ const PARALLEL_PASS: usize = 64;
 /// (three runs of pile-1000 at once, 300 steps each), yielding to 2.2; one run alone is as
 /// fast either way. A thread that panics opens it for good, so the others finish and the
 /// broadcast passes the panic on instead of hanging.
-struct SpinBarrier {
+struct ColourBarrier {
     threads: usize,
     arrived: AtomicUsize,
     generation: AtomicUsize,
     open: AtomicBool,
 }
 
-impl SpinBarrier {
+impl ColourBarrier {
     fn new(threads: usize) -> Self {
         Self {
             threads,
@@ -213,9 +213,7 @@ impl SpinBarrier {
             std::thread::yield_now();
         }
     }
-}
 
-impl SpinBarrier {
     /// A guard that opens the barrier if its thread unwinds.
     fn released_on_panic(&self) -> impl Drop + '_ {
         struct Release<'a>(&'a AtomicBool);

@@ -200,9 +200,10 @@ impl Substeps {
         // Soft contacts are clamped to 3/16 of the substep rate, those with a static body (twice
         // as stiff) to a quarter: at half the rate these ring (a stack of five at dt = 0.04
         // jitters at 0.4 units/s). The clamp binds (substeps over 1/200 s) only in a step with
-        // no contacts touching or one past [`MAX_CONTACT_SUBSTEPS`] (dt over 0.08); there a second relax
-        // pass holds a stack of five still (measured at dt 0.04 with four substeps: drift 5e-4 in
-        // 10 s awake, 2e-3 with one pass). Box2D v3.1 clamps at an eighth with one relax pass:
+        // no contacts touching or one past [`MAX_CONTACT_SUBSTEPS`] (dt over 0.08); there a
+        // second relax pass holds a stack of five still (measured at dt 0.04 with four
+        // substeps: drift 5e-4 in 10 s awake, 2e-3 with one pass). Box2D v3.1 clamps at an
+        // eighth with one relax pass:
         // twice the sag under load (the top of a stack of ten sank by 0.18 at dt = 0.04 that
         // way, 0.08 with the clamp at 3/16 and four substeps, 0.033 with seven at 30 Hz).
         let clamp = CONTACT_RATE_FRACTION / h;
