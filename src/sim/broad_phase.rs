@@ -9,6 +9,7 @@ use super::aabb::{Aabb, body_aabb};
 use super::body::RigidBody;
 use super::grid::{Grid, typical_cell_size};
 use super::pair_queue::PairQueue;
+use super::parallel;
 use super::shape::Shape;
 use glam::{DQuat, DVec3};
 use rayon::prelude::*;
@@ -48,12 +49,8 @@ impl BroadPhase {
     /// Recomputes every body's box from its pose (in parallel).
     pub fn update_boxes(&mut self, bodies: &[RigidBody], shapes: &[Shape]) {
         self.aabbs.clear();
-        self.aabbs.par_extend(
-            bodies
-                .par_iter()
-                .with_min_len(256)
-                .map(|b| body_aabb(b, &shapes[b.shape])),
-        );
+        let boxes = |b: &RigidBody| body_aabb(b, &shapes[b.shape]);
+        parallel::extend_map(&mut self.aabbs, bodies.par_iter(), 256, boxes);
     }
 
     /// Body boxes as of the last update or move (the coursework solver's; the soft step keeps
@@ -95,16 +92,15 @@ impl BroadPhase {
         self.proxies.resize(n, Aabb::EMPTY);
         let mut moved = vec![false; n];
         let (aabbs, lookahead) = (&self.aabbs, self.lookahead);
-        (&mut self.proxies, &mut moved)
-            .into_par_iter()
-            .zip(bodies)
-            .enumerate()
-            .with_min_len(256)
-            .filter(|(i, ((proxy, _), _))| !(kept && proxy.contains(&aabbs[*i])))
-            .for_each(|(i, ((proxy, moved), body))| {
-                *proxy = proxy_of(&aabbs[i], body, shapes, lookahead);
-                *moved = true;
-            });
+        let items = (&mut self.proxies, &mut moved).into_par_iter();
+        let items = items.zip(bodies).enumerate();
+        parallel::for_each(items, 256, |(i, ((proxy, moved), body))| {
+            if kept && proxy.contains(&aabbs[i]) {
+                return;
+            }
+            *proxy = proxy_of(&aabbs[i], body, shapes, lookahead);
+            *moved = true;
+        });
         let pairs = grid_pairs(
             &mut self.grid,
             &self.proxies,
@@ -146,11 +142,12 @@ impl BroadPhase {
         let lookahead = self.lookahead;
         let mut moved = vec![false; n];
         let boxes = (&mut self.speculative, &mut self.proxies);
-        (boxes, &mut self.placed, &mut moved)
-            .into_par_iter()
-            .zip((bodies, margins))
-            .with_min_len(256)
-            .for_each(|(((speculative, proxy), placed, moved), (b, &m))| {
+        let items = (boxes, &mut self.placed, &mut moved).into_par_iter();
+        let items = items.zip((bodies, margins));
+        parallel::for_each(
+            items,
+            256,
+            |(((speculative, proxy), placed, moved), (b, &m))| {
                 let pose = Some((b.position, b.orientation));
                 if b.is_awake() || *placed != pose {
                     *speculative = body_aabb(b, &shapes[b.shape]).fattened(m);
@@ -160,7 +157,8 @@ impl BroadPhase {
                     *proxy = proxy_of(speculative, b, shapes, lookahead);
                     *moved = true;
                 }
-            });
+            },
+        );
         self.is_awake.clear();
         self.is_awake.extend(bodies.iter().map(|b| b.is_awake()));
         let (awake, speculative) = (&self.is_awake, &self.speculative);

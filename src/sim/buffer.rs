@@ -3,6 +3,7 @@
 //! it moves; at 100,000 bodies in contact that is most of a scene's peak memory. These helpers
 //! keep a buffer near the size of its busiest step.
 
+use super::parallel;
 use rayon::prelude::*;
 use std::ops::Range;
 
@@ -48,30 +49,23 @@ pub fn runs<T>(mut items: &mut [T], lengths: impl Iterator<Item = usize>) -> Vec
         .collect()
 }
 
-/// Below this many items a pass runs on the calling thread: rayon's machinery costs more than
-/// a few bodies' work (listing a chain's 18 bodies through it made two-chain's step 4 % slower).
+/// Fewest items a list's pass shares among threads (see [`parallel`]): rayon's machinery costs
+/// more than a few bodies' work (listing a chain's 18 bodies through it made two-chain's step
+/// 4 % slower).
 const PARALLEL_ITEMS: usize = 4096;
 
 /// Replaces `out` with the indices `i < n` for which `keep(i)`, ascending; on all threads
 /// when `n` is large.
 pub fn indices_where(n: usize, keep: impl Fn(usize) -> bool + Sync + Send, out: &mut Vec<usize>) {
     out.clear();
-    if n < PARALLEL_ITEMS {
-        out.extend((0..n).filter(|&i| keep(i)));
-    } else {
-        let all = (0..n).into_par_iter().with_min_len(PARALLEL_ITEMS);
-        out.par_extend(all.filter(|&i| keep(i)));
-    }
+    let all = (0..n).into_par_iter();
+    parallel::extend_filter_map(out, all, PARALLEL_ITEMS, |i| keep(i).then_some(i));
 }
 
 /// Replaces `out` with `f(i)` for `i < n`, in order; on all threads when `n` is large.
 pub fn map_indices<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync + Send, out: &mut Vec<T>) {
     out.clear();
-    if n < PARALLEL_ITEMS {
-        out.extend((0..n).map(f));
-    } else {
-        out.par_extend((0..n).into_par_iter().with_min_len(PARALLEL_ITEMS).map(f));
-    }
+    parallel::extend_map(out, (0..n).into_par_iter(), PARALLEL_ITEMS, f);
 }
 
 #[cfg(test)]

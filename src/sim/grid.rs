@@ -2,6 +2,7 @@
 //! to date one body at a time while contacts are being resolved.
 
 use super::aabb::Aabb;
+use super::parallel;
 use glam::DVec3;
 use rayon::prelude::*;
 use smallvec::SmallVec;
@@ -301,12 +302,8 @@ impl Grid {
             self.is_dirty[d as usize] = false;
         }
         self.dirty.clear();
-        self.pairs
-            .par_iter()
-            .with_min_len(4096)
-            .copied()
-            .filter(|&(i, j)| keep(i as usize, j as usize))
-            .collect()
+        let wanted = |&(i, j): &(u32, u32)| keep(i as usize, j as usize).then_some((i, j));
+        parallel::filter_map(self.pairs.par_iter(), 4096, wanted)
     }
 
     /// Every pair (i < j, sorted, each once) of bodies in the grid whose boxes overlap. Only
@@ -352,17 +349,14 @@ impl Grid {
     /// Brings `pairs` up to date: the pairs of the dirty bodies are dropped and found again from
     /// their cells (in parallel), then merged in. Returns the number of box tests.
     fn refresh_dirty_pairs(&mut self, aabbs: &[Aabb]) -> usize {
-        let fresh: Vec<Found> = self
-            .dirty
-            .par_chunks(64)
-            .map(|chunk| {
-                let mut found = (Vec::new(), 0);
-                for &d in chunk.iter().filter(|&&d| self.present[d as usize]) {
-                    self.pairs_of(d as usize, aabbs, &mut found);
-                }
-                found
-            })
-            .collect();
+        let mut fresh: Vec<Found> = Vec::new();
+        parallel::extend_map(&mut fresh, self.dirty.par_chunks(64), 1, |chunk| {
+            let mut found = (Vec::new(), 0);
+            for &d in chunk.iter().filter(|&&d| self.present[d as usize]) {
+                self.pairs_of(d as usize, aabbs, &mut found);
+            }
+            found
+        });
         let tested = fresh.iter().map(|f| f.1).sum();
         let mut fresh: Vec<(u32, u32)> = fresh.into_iter().flat_map(|f| f.0).collect();
         fresh.par_sort_unstable();

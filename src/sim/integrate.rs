@@ -2,17 +2,18 @@
 //! orientations by the quaternion exponential of the world angular velocity.
 
 use crate::sim::body::RigidBody;
+use crate::sim::parallel;
 use crate::sim::settings::{RotationIntegrator, Settings};
 use glam::{DMat3, DQuat, DVec3};
 use rayon::prelude::*;
 
 /// Advances every movable body by `dt`. Fixed and quarantined bodies are skipped.
 pub fn integrate_bodies(bodies: &mut [RigidBody], settings: &Settings, dt: f64) {
-    bodies
-        .par_iter_mut()
-        .with_min_len(256)
-        .filter(|b| b.is_dynamic())
-        .for_each(|body| integrate_body(body, settings, dt));
+    parallel::for_each(bodies.par_iter_mut(), 256, |body| {
+        if body.is_dynamic() {
+            integrate_body(body, settings, dt);
+        }
+    });
 }
 
 /// The coursework's update of one body: velocity, then pose (with the skeleton's `QExp` cutoff).

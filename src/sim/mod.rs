@@ -16,6 +16,7 @@ pub mod grid;
 pub mod integrate;
 pub mod narrow_phase;
 pub mod pair_queue;
+pub mod parallel;
 pub mod quarantine;
 pub mod rng;
 pub mod settings;

@@ -3,6 +3,7 @@
 //! constraints.
 
 use super::body::RigidBody;
+use super::parallel;
 use glam::{DQuat, DVec3};
 use rayon::prelude::*;
 
@@ -40,27 +41,23 @@ impl Quarantine {
     /// Freezes the bodies that blew up since the last check; returns their indices.
     /// Sleeping bodies are skipped: the solver did not move them.
     pub fn check(&mut self, bodies: &mut [RigidBody], frozen: &mut Vec<usize>) {
-        frozen.par_extend(
-            bodies
-                .par_iter_mut()
-                .zip(self.last_good.par_iter_mut())
-                .enumerate()
-                .with_min_len(1024)
-                .filter(|(_, (body, _))| !body.quarantined && !body.asleep)
-                .filter_map(|(index, (body, last_good))| {
-                    let limit = ABSURD_SPEED * ABSURD_SPEED;
-                    let absurd = body.linear_velocity.length_squared() > limit
-                        || body.angular_velocity.length_squared() > limit;
-                    if body.is_finite() && !absurd {
-                        *last_good = (body.position, body.orientation);
-                        return None;
-                    }
-                    (body.position, body.orientation) = *last_good;
-                    body.linear_velocity = DVec3::ZERO;
-                    body.angular_velocity = DVec3::ZERO;
-                    body.quarantined = true;
-                    Some(index)
-                }),
-        );
+        let items = bodies.par_iter_mut().zip(&mut self.last_good).enumerate();
+        parallel::extend_filter_map(frozen, items, 1024, |(index, (body, last_good))| {
+            if body.quarantined || body.asleep {
+                return None;
+            }
+            let limit = ABSURD_SPEED * ABSURD_SPEED;
+            let absurd = body.linear_velocity.length_squared() > limit
+                || body.angular_velocity.length_squared() > limit;
+            if body.is_finite() && !absurd {
+                *last_good = (body.position, body.orientation);
+                return None;
+            }
+            (body.position, body.orientation) = *last_good;
+            body.linear_velocity = DVec3::ZERO;
+            body.angular_velocity = DVec3::ZERO;
+            body.quarantined = true;
+            Some(index)
+        });
     }
 }

@@ -10,6 +10,7 @@ use crate::sim::narrow_phase::{
     Contact, Detection, body_contact, body_contact_patch, ground_contact, oriented_boxes_overlap,
 };
 use crate::sim::pair_queue::{PairQueue, PairSource};
+use crate::sim::parallel;
 use crate::sim::settings::BroadPhase as BroadPhaseKind;
 use crate::sim::shape::Shape;
 use crate::sim::stats::{SampledStage, Stage, StepStats, Stopwatch};
@@ -213,7 +214,7 @@ fn precompute(
         (broad.overlap(i, j) && flags_may_collide(flags[i], flags[j]))
             .then(|| contact_between(bodies, shapes, i, j, ctx.settings.contact_patches))
     };
-    out.par_extend(candidates.par_iter().with_min_len(16).map(detect));
+    parallel::extend_map(out, candidates.par_iter(), 16, detect);
 }
 
 /// Sequential resolution in pair order. A pair whose bodies a resolution moved is tested again

@@ -6,6 +6,7 @@
 
 use super::manifold::{GROUND, Manifold};
 use super::solver_body::SolverBody;
+use crate::sim::parallel;
 use rayon::prelude::*;
 use std::marker::PhantomData;
 use std::ops::Range;
@@ -319,16 +320,7 @@ pub fn for_each_indexed<A: Send>(indices: &[usize], a: &mut [A], f: impl Fn(usiz
     let a = Shared::new(a);
     // SAFETY: the indices are distinct, so each element has one user.
     let each = |&i: &usize| f(i, unsafe { a.get_mut(i) });
-    // (A short list on this thread without rayon's set-up, which costs a small scene's kick
-    // more than the kick.)
-    if indices.len() < PARALLEL_INDICES {
-        indices.iter().for_each(each);
-    } else {
-        indices
-            .par_iter()
-            .with_min_len(PARALLEL_INDICES)
-            .for_each(each);
-    }
+    parallel::for_each(indices.par_iter(), PARALLEL_INDICES, each);
 }
 
 /// Fewest indices [`for_each_indexed`] shares among threads.

@@ -12,7 +12,7 @@ use super::constraint_graph::{Colours, Shared, with_pair};
 use super::manifold::{GROUND, MAX_POINTS, Manifold, ManifoldPoint};
 use super::softness::Softness;
 use super::solver_body::SolverBody;
-use crate::sim::buffer;
+use crate::sim::{buffer, parallel};
 use glam::{DQuat, DVec3};
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
@@ -320,10 +320,11 @@ impl ContactCache {
         let sleeping =
             |(i, j): (usize, usize)| (i != GROUND && bodies[i].asleep) || bodies[j].asleep;
         // Pairs are unique among a step's manifolds, so an unstable sort gives the one order.
-        let mut order: Vec<((usize, usize), u32)> = (manifolds.par_iter().enumerate())
-            .with_min_len(1024)
-            .map(|(k, m)| ((m.body1, m.body2), k as u32))
-            .collect();
+        let all = manifolds.par_iter().enumerate();
+        let mut order: Vec<((usize, usize), u32)> = Vec::new();
+        parallel::extend_map(&mut order, all, 1024, |(k, m)| {
+            ((m.body1, m.body2), k as u32)
+        });
         order.par_sort_unstable_by_key(|(pair, _)| *pair);
         // A pair both collided and kept (a body fell asleep this step): the new entry wins.
         let collided = |pair: &(usize, usize)| order.binary_search_by_key(pair, |e| e.0).is_ok();
@@ -341,16 +342,12 @@ impl ContactCache {
         }
         let slots = Shared::new(slots);
         let kept_pairs = &self.pairs;
-        order
-            .par_iter()
-            .enumerate()
-            .with_min_len(256)
-            .for_each(|(f, &(pair, k))| {
-                let place = f + kept_pairs.partition_point(|p| *p < pair);
-                let entry = CachedManifold::new(&constraints[k as usize], firsts[k as usize]);
-                // SAFETY: each new entry has a place of its own, no kept entry's.
-                unsafe { slots.write(place, std::mem::MaybeUninit::new(entry)) };
-            });
+        parallel::for_each(order.par_iter().enumerate(), 256, |(f, &(pair, k))| {
+            let place = f + kept_pairs.partition_point(|p| *p < pair);
+            let entry = CachedManifold::new(&constraints[k as usize], firsts[k as usize]);
+            // SAFETY: each new entry has a place of its own, no kept entry's.
+            unsafe { slots.write(place, std::mem::MaybeUninit::new(entry)) };
+        });
         // SAFETY: all `total` places are written (see above).
         unsafe { self.carried.set_len(total) };
         merge_into(&mut self.pairs, kept, order.iter().map(|(pair, _)| *pair));
@@ -387,19 +384,17 @@ impl ContactCache {
             &mut self.points.spare_capacity_mut()[..fresh],
             constraints.iter().map(|c| c.count as usize),
         );
-        (manifolds, constraints, &mut runs[..])
-            .into_par_iter()
-            .with_min_len(256)
-            .for_each(|(m, c, run)| {
-                assert_eq!(
-                    run.len(),
-                    m.points().len(),
-                    "a constraint of another manifold"
-                );
-                for (slot, p) in run.iter_mut().zip(cached_points(m, c, points)) {
-                    slot.write(p);
-                }
-            });
+        let items = (manifolds, constraints, &mut runs[..]).into_par_iter();
+        parallel::for_each(items, 256, |(m, c, run)| {
+            assert_eq!(
+                run.len(),
+                m.points().len(),
+                "a constraint of another manifold"
+            );
+            for (slot, p) in run.iter_mut().zip(cached_points(m, c, points)) {
+                slot.write(p);
+            }
+        });
         // SAFETY: every run was written whole (checked: its manifold has as many points).
         unsafe { self.points.set_len(kept.len() + fresh) };
         firsts
@@ -574,7 +569,6 @@ pub fn prepare(
     params: &ContactParams,
     (constraints, points): (&mut Vec<ContactConstraint>, &mut Vec<ContactPoint>),
 ) {
-    const PARALLEL_MANIFOLDS: usize = 512;
     let ground = bodies.len() - 1;
     let centre = |i: usize| (i != ground).then(|| poses[i].0);
     // A manifold's constraint, and its points written into `run`.
@@ -622,18 +616,10 @@ pub fn prepare(
         &mut points.spare_capacity_mut()[..total],
         manifolds.iter().map(|m| m.points().len()),
     );
-    let items = (manifolds, &firsts[..], &mut runs[..]);
-    if manifolds.len() < PARALLEL_MANIFOLDS {
-        let items = items.0.iter().zip(items.1).zip(items.2.iter_mut());
-        constraints.extend(items.map(|((m, &first), run)| build(m, first, run)));
-    } else {
-        constraints.par_extend(
-            items
-                .into_par_iter()
-                .with_min_len(256)
-                .map(|(m, &first, run)| build(m, first, run)),
-        );
-    }
+    let items = (manifolds, &firsts[..], &mut runs[..]).into_par_iter();
+    parallel::extend_map(constraints, items, 256, |(m, &first, run)| {
+        build(m, first, run)
+    });
     // SAFETY: each manifold wrote all its points, and the runs cover the first `total`.
     unsafe { points.set_len(total) };
 }
@@ -694,15 +680,15 @@ impl HeldImpulses {
         fraction: f64,
     ) {
         buffer::clear_for(&mut self.normal, points.len());
-        let points = points.par_iter_mut().with_min_len(HOLD_CHUNK);
-        self.normal.par_extend(points.map(|p| {
+        let points = points.par_iter_mut();
+        parallel::extend_map(&mut self.normal, points, HOLD_CHUNK, |p| {
             let held = fraction * p.normal_impulse;
             p.normal_impulse -= held;
             held
-        }));
+        });
         buffer::clear_for(&mut self.friction, constraints.len());
-        let constraints = constraints.par_iter_mut().with_min_len(HOLD_CHUNK);
-        self.friction.par_extend(constraints.map(|c| {
+        let constraints = constraints.par_iter_mut();
+        parallel::extend_map(&mut self.friction, constraints, HOLD_CHUNK, |c| {
             let f = &mut c.friction;
             let held = (
                 f.tangent_impulse.map(|t| fraction * t),
@@ -711,21 +697,19 @@ impl HeldImpulses {
             f.tangent_impulse = [0, 1].map(|k| f.tangent_impulse[k] - held.0[k]);
             f.twist_impulse -= held.1;
             held
-        }));
+        });
     }
 
     /// Adds the held impulses back to the accumulators (not applied to the bodies).
     pub fn release(&mut self, constraints: &mut [ContactConstraint], points: &mut [ContactPoint]) {
-        (points.par_iter_mut().zip(&self.normal))
-            .with_min_len(HOLD_CHUNK)
-            .for_each(|(p, n)| p.normal_impulse += n);
-        (constraints.par_iter_mut().zip(&self.friction))
-            .with_min_len(HOLD_CHUNK)
-            .for_each(|(c, (t, twist))| {
-                let f = &mut c.friction;
-                f.tangent_impulse = [0, 1].map(|k| f.tangent_impulse[k] + t[k]);
-                f.twist_impulse += twist;
-            });
+        let points = points.par_iter_mut().zip(&self.normal);
+        parallel::for_each(points, HOLD_CHUNK, |(p, n)| p.normal_impulse += n);
+        let constraints = constraints.par_iter_mut().zip(&self.friction);
+        parallel::for_each(constraints, HOLD_CHUNK, |(c, (t, twist))| {
+            let f = &mut c.friction;
+            f.tangent_impulse = [0, 1].map(|k| f.tangent_impulse[k] + t[k]);
+            f.twist_impulse += twist;
+        });
         self.normal.clear();
         self.friction.clear();
     }

@@ -28,6 +28,7 @@ use super::buffer;
 use super::constraint::DistanceConstraint;
 use super::grab::Grab;
 use super::integrate::integrate_pose;
+use super::parallel;
 use super::shape::Shape;
 use super::stats::{Stage, StepStats, Stopwatch};
 use super::step_context::StepContext;
@@ -440,29 +441,24 @@ impl SoftStep {
         let grown = broad.speculative_boxes();
         for range in buffer::blocks(bodies.len(), MANIFOLD_BLOCK) {
             buffer::reserve_exact(manifolds, range.len());
-            manifolds.par_extend(range.into_par_iter().with_min_len(256).filter_map(|j| {
+            parallel::extend_filter_map(manifolds, range.into_par_iter(), 256, |j| {
                 let b = &bodies[j];
                 let reaches = b.is_awake() && grown[j].min.y <= 0.0;
                 reaches.then(|| ground_manifold(j, b, &shapes[b.shape], margins[j]))?
-            }));
+            });
         }
         stats.ground_contacts = manifolds.len();
         let mut states = self.pair_states.take_for(pairs);
         for range in buffer::blocks(pairs.len(), MANIFOLD_BLOCK) {
             buffer::reserve_exact(manifolds, range.len());
             let (pairs, states) = (&pairs[range.clone()], &mut states[range]);
-            manifolds.par_extend(
-                pairs
-                    .par_iter()
-                    .zip(states.par_iter_mut())
-                    .with_min_len(32)
-                    .filter_map(|(&(i, j), state)| {
-                        let (i, j) = (i as usize, j as usize);
-                        let prediction = margins[i] + margins[j];
-                        let (a, b) = ((i, &bodies[i]), (j, &bodies[j]));
-                        body_manifold(a, b, shapes, prediction, state)
-                    }),
-            );
+            let items = pairs.par_iter().zip(states);
+            parallel::extend_filter_map(manifolds, items, 32, |(&(i, j), state)| {
+                let (i, j) = (i as usize, j as usize);
+                let prediction = margins[i] + margins[j];
+                let (a, b) = ((i, &bodies[i]), (j, &bodies[j]));
+                body_manifold(a, b, shapes, prediction, state)
+            });
         }
         self.pair_states.keep(pairs, states);
         stats.contacts = manifolds.len() - stats.ground_contacts;
@@ -803,23 +799,21 @@ fn integrate_free(
 ) {
     let integrator = ctx.settings.rotation_integrator;
     let h = substeps.h;
-    bodies
-        .par_iter_mut()
-        .zip(start.par_iter_mut())
-        .zip(free.par_iter())
-        .with_min_len(512)
-        .filter(|(_, free)| **free)
-        .for_each(|((body, start), _)| {
-            record_start(start, body);
-            body.linear_velocity += kicks.half;
-            for k in 0..substeps.count {
-                if k > 0 {
-                    body.linear_velocity += kicks.full;
-                }
-                integrate_pose(body, integrator, h, false);
+    let items = (bodies, start, free).into_par_iter();
+    parallel::for_each(items, 512, |(body, start, &free)| {
+        if !free {
+            return;
+        }
+        record_start(start, body);
+        body.linear_velocity += kicks.half;
+        for k in 0..substeps.count {
+            if k > 0 {
+                body.linear_velocity += kicks.full;
             }
-            body.linear_velocity += kicks.half;
-        });
+            integrate_pose(body, integrator, h, false);
+        }
+        body.linear_velocity += kicks.half;
+    });
 }
 
 impl Workspace {

@@ -20,6 +20,7 @@ use super::joint_solver::JointRow;
 use super::manifold::{GROUND, Manifold};
 use super::solver_body::SolverBody;
 use crate::sim::body::RigidBody;
+use crate::sim::parallel;
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -42,15 +43,11 @@ pub fn apply(
             && p.max_normal_impulse != 0.0
     };
     let view = (&*constraints, &*points);
-    let bouncing: Vec<u32> = (0..constraints.len())
-        .into_par_iter()
-        .with_min_len(1024)
-        .filter(|&k| {
-            let c = &view.0[k];
-            view.1[c.points()].iter().any(bounces)
-        })
-        .map(|k| k as u32)
-        .collect();
+    let all = (0..constraints.len()).into_par_iter();
+    let bouncing: Vec<u32> = parallel::filter_map(all, 1024, |k| {
+        let c = &view.0[k];
+        view.1[c.points()].iter().any(bounces).then_some(k as u32)
+    });
     if bouncing.is_empty() {
         return bouncing;
     }
@@ -166,11 +163,10 @@ fn scale_restitution(
 ) {
     let view = &*bodies;
     // Most steps have a few small groups: on one thread then.
-    let shares: Vec<f64> = groups
-        .par_iter()
-        .with_min_len(16)
-        .map(|members| share(energy_terms(members, (poses, before, view), start, gravity)))
-        .collect();
+    let mut shares: Vec<f64> = Vec::new();
+    parallel::extend_map(&mut shares, groups.par_iter(), 16, |members| {
+        share(energy_terms(members, (poses, before, view), start, gravity))
+    });
     for (members, alpha) in groups.iter().zip(shares) {
         if alpha == 1.0 {
             continue;

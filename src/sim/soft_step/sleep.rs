@@ -19,6 +19,7 @@ use super::disjoint_sets::DisjointSets;
 use super::manifold::{GROUND, Manifold};
 use crate::sim::body::RigidBody;
 use crate::sim::constraint::DistanceConstraint;
+use crate::sim::parallel;
 use rayon::prelude::*;
 
 /// Speed (units/s) at which an island's mass, moving together, has the most kinetic energy
@@ -85,19 +86,16 @@ pub fn settle(
     // One pass over the bodies, which keeps the awake ones' indices, speeds and masses for the
     // islands: three passes over 100,000 bodies of 300 bytes took scatter-100000's sleeping
     // from 5-6.5 to 8.8-9.6 ms a step.
-    let awake: Vec<(usize, f64, f64)> = bodies
-        .par_iter()
-        .zip(start.par_iter())
-        .enumerate()
-        .with_min_len(1024)
-        .filter(|(_, (b, _))| b.is_awake())
-        .map(|(i, (b, &(p0, q0)))| {
-            let turn = (q0.conjugate() * b.orientation).normalize();
-            let angle = 2.0 * turn.xyz().length().atan2(turn.w.abs());
-            let moved = (b.position - p0).length() + angle * radii[b.shape];
-            (i, POSITION_SLEEP_FACTOR * moved / dt, b.mass)
-        })
-        .collect();
+    let items = bodies.par_iter().zip(start).enumerate();
+    let awake: Vec<(usize, f64, f64)> = parallel::filter_map(items, 1024, |(i, (b, &(p0, q0)))| {
+        if !b.is_awake() {
+            return None;
+        }
+        let turn = (q0.conjugate() * b.orientation).normalize();
+        let angle = 2.0 * turn.xyz().length().atan2(turn.w.abs());
+        let moved = (b.position - p0).length() + angle * radii[b.shape];
+        Some((i, POSITION_SLEEP_FACTOR * moved / dt, b.mass))
+    });
     islands.reset(bodies.len());
     for (i, j) in links(bodies, constraints, touching) {
         islands.sets.join(i, j);
