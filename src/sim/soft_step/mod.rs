@@ -325,6 +325,22 @@ impl SoftStep {
         // clock read per switch costs more than a small scene's integration (bounce: a quarter
         // of the step).
         watch.enter(Stage::Solve);
+        // With no manifold, constraint or grab every body is free: the passes would find none.
+        if !self.work.solved.is_empty() {
+            self.solve_substeps(ctx, &mut scene, &substeps, &kicks);
+        }
+        watch.enter(Stage::SolveFinish);
+        self.finish(ctx, (scene.bodies, scene.constraints, scene.start), stats);
+    }
+
+    /// The solved bodies' substeps between the half kicks, then the final pass.
+    fn solve_substeps(
+        &mut self,
+        ctx: &StepContext,
+        scene: &mut Scene,
+        substeps: &Substeps,
+        kicks: &Kicks,
+    ) {
         self.work.kick(kicks.half);
         for k in 0..substeps.count {
             if k > 0 {
@@ -337,15 +353,13 @@ impl SoftStep {
                 self.work.hold_back(0.5);
             }
             let last = k + 1 == substeps.count;
-            self.substep(ctx, (scene.bodies, scene.start), &substeps, last);
+            self.substep(ctx, (scene.bodies, scene.start), substeps, last);
             if k == 0 {
                 self.work.release();
             }
         }
         self.work.kick(kicks.half);
-        self.final_pass(scene.bodies, &substeps);
-        watch.enter(Stage::SolveFinish);
-        self.finish(ctx, (scene.bodies, scene.constraints, scene.start), stats);
+        self.final_pass(scene.bodies, substeps);
     }
 
     /// Wakes everything when sleeping is off or the settings changed, and the grabbed body's
