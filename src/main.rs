@@ -48,7 +48,7 @@ enum BenchCommand {
     /// ms/step against N for generated scenes: the coursework's loop vs tumble on 1 and all cores.
     Scale(cli::bench::ScaleArgs),
     /// Error against run time per scenario, setting combination and time step (run time: the
-    /// fastest of a job's runs, repeated until its steps took 0.1 s, at most 15 runs,
+    /// fastest of a job's runs: three, and more until its steps took 0.1 s, at most 15,
     /// interleaved with the other combinations' at the same scenario and dt).
     Accuracy(cli::bench::AccuracyArgs),
     /// The tower and the chains for 100,000 steps: drift, violation, energy.
