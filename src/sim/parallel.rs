@@ -2,7 +2,7 @@
 //!
 //! rayon's set-up for a pass (asking the pool for its size, splitting, the consumer chain) costs
 //! several hundred instructions even when it hands nothing over, and a one-body step makes a
-//! dozen passes: 16,000 instructions a step for a free body under the soft step, a third of them
+//! dozen passes: 16,000 instructions a step for a free body under the soft step, a fifth of them
 //! rayon's (callgrind). Below twice its `min` a pass would not be split anyway, so it runs the
 //! same items in the same order on this thread, through the iterator's own sequential form
 //! (`with_producer`): the results are the same bits either way.
