@@ -35,7 +35,7 @@ pub fn extend_map<I, T>(
     T: Send,
 {
     if items.len() < 2 * min.max(1) {
-        items.with_producer(ExtendFilterMap(out, |item| Some(f(item))))
+        items.with_producer(ExtendMap(out, f))
     } else {
         out.par_extend(items.with_min_len(min).map(f))
     }
@@ -81,6 +81,17 @@ impl<T, F: Fn(T)> ProducerCallback<T> for ForEach<F> {
     type Output = ();
     fn callback<P: Producer<Item = T>>(self, producer: P) {
         producer.into_iter().for_each(self.0)
+    }
+}
+
+/// A producer's items mapped by `f` onto the vector, on this thread (an exact length, so the
+/// vector grows once).
+struct ExtendMap<'a, U, F>(&'a mut Vec<U>, F);
+
+impl<T, U, F: Fn(T) -> U> ProducerCallback<T> for ExtendMap<'_, U, F> {
+    type Output = ();
+    fn callback<P: Producer<Item = T>>(self, producer: P) {
+        self.0.extend(producer.into_iter().map(self.1))
     }
 }
 
