@@ -869,7 +869,7 @@ impl Scratch {
             // SAFETY: a body with mass to move belongs to this group only.
             let pose = unsafe { poses.get_mut(index) };
             pose.position += shift;
-            pose.orientation = crate::sim::integrate::rotate_by(pose.orientation, turn, 1.0);
+            pose.orientation = crate::sim::integrate::turn_by(pose.orientation, turn, 1.0);
         });
     }
 }
