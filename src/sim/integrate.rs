@@ -99,8 +99,9 @@ pub fn rotate_by(q: DQuat, angular_velocity: DVec3, dt: f64) -> DQuat {
 /// Half-angles below this are turned by [`turn_by`]'s series.
 const SERIES_HALF_ANGLE: f64 = 0.05;
 
-/// [`rotate_by`] for tumble's own uses (every integrator but the coursework's, which keeps
-/// `rotate_by` bit for bit). Below a half-angle `t` of [`SERIES_HALF_ANGLE`] (a turn of 0.1 rad
+/// [`rotate_by`] for every turn but the coursework solver's (its integrator with the skeleton's
+/// cut-off keeps `rotate_by`, bit for bit): the soft step's, the opt-in integrators' and the
+/// joint projection's. Below a half-angle `t` of [`SERIES_HALF_ANGLE`] (a turn of 0.1 rad
 /// in the step: 10 rad/s at a substep of 0.01 s) the exponential's `sin(t) / t` and `cos(t)`
 /// come from their Taylor series to `t^8` (the first term left out is under 3e-20, far below a
 /// rounding) and the product back to unit length by one Newton step for `1 / |q|` (`|q|^2` is
