@@ -10,13 +10,19 @@
 use rayon::iter::plumbing::{Producer, ProducerCallback};
 use rayon::prelude::*;
 
+/// Whether a pass of `len` items with runs of at least `min` stays on this thread: rayon would
+/// not split fewer than two runs.
+fn on_this_thread(len: usize, min: usize) -> bool {
+    len < 2 * min.max(1)
+}
+
 /// Calls `f` on every item of `items`: on this thread when there are fewer than twice `min`,
 /// else shared among the pool's threads in runs of at least `min`.
 pub fn for_each<I>(items: I, min: usize, f: impl Fn(I::Item) + Sync + Send)
 where
     I: IndexedParallelIterator,
 {
-    if items.len() < 2 * min.max(1) {
+    if on_this_thread(items.len(), min) {
         items.with_producer(ForEach(f))
     } else {
         items.with_min_len(min).for_each(f)
@@ -34,7 +40,7 @@ pub fn extend_map<I, T>(
     I: IndexedParallelIterator,
     T: Send,
 {
-    if items.len() < 2 * min.max(1) {
+    if on_this_thread(items.len(), min) {
         items.with_producer(ExtendMap(out, f))
     } else {
         out.par_extend(items.with_min_len(min).map(f))
@@ -52,7 +58,7 @@ pub fn extend_filter_map<I, T>(
     I: IndexedParallelIterator,
     T: Send,
 {
-    if items.len() < 2 * min.max(1) {
+    if on_this_thread(items.len(), min) {
         items.with_producer(ExtendFilterMap(out, f))
     } else {
         out.par_extend(items.with_min_len(min).filter_map(f))
