@@ -4,6 +4,7 @@
 use crate::sim::body::RigidBody;
 use crate::sim::parallel;
 use crate::sim::settings::{RotationIntegrator, Settings};
+use crate::sim::sym_mat3::SymMat3;
 use glam::{DMat3, DQuat, DVec3};
 use rayon::prelude::*;
 
@@ -53,10 +54,9 @@ pub fn integrate_pose(
         RotationIntegrator::AngularMomentum => {
             // Torque-free: world angular momentum L is constant over the step. Rotate by the
             // angular velocity at the half-step orientation (explicit midpoint, second order),
-            // then read the new angular velocity off L: |L| and L are kept exactly. Tensors are
-            // applied in body frame (`q I q^-1 v`), cheaper than forming `R I R^T`.
+            // then read the new angular velocity off L: |L| and L are kept exactly.
             let q = body.orientation;
-            let momentum = q * (body.inertia.to_mat3() * (q.inverse() * body.angular_velocity));
+            let momentum = tensor_at(body.inertia, q, body.angular_velocity);
             let half = turn_by(q, body.angular_velocity, 0.5 * dt);
             let w_half = inverse_inertia_at(body, half, momentum);
             body.orientation = turn_by(q, w_half, dt);
@@ -79,7 +79,17 @@ pub fn coursework_rotate_by(q: DQuat, angular_velocity: DVec3, dt: f64) -> DQuat
 
 /// `I(q)^-1 v`: the world inverse inertia at orientation `q` applied to `v`.
 fn inverse_inertia_at(body: &RigidBody, q: DQuat, v: DVec3) -> DVec3 {
-    q * (body.inverse_inertia.to_mat3() * (q.inverse() * v))
+    tensor_at(body.inverse_inertia, q, v)
+}
+
+/// `R T R^T v` for the body-frame tensor `T` at orientation `q` (`R` its matrix), applied in
+/// body frame without forming the world tensor: the matrix and three products by it cost
+/// a third less than rotating `v` by the quaternion there and back.
+#[inline]
+fn tensor_at(tensor: SymMat3, q: DQuat, v: DVec3) -> DVec3 {
+    let r = DMat3::from_quat(q);
+    let in_body = DVec3::new(r.x_axis.dot(v), r.y_axis.dot(v), r.z_axis.dot(v));
+    r * (tensor.to_mat3() * in_body)
 }
 
 /// `normalise(exp((0, dt/2 w)) q)` with `exp((0, theta u)) = (cos theta, sin theta u)`:
@@ -107,6 +117,7 @@ const SERIES_HALF_ANGLE: f64 = 0.05;
 /// rounding) and the product back to unit length by one Newton step for `1 / |q|` (`|q|^2` is
 /// 1 to a few roundings, the step's error their square): no square root, division or sine,
 /// which took most of the angular-momentum integrator's time (two turns a body a substep).
+#[inline]
 pub fn turn_by(q: DQuat, angular_velocity: DVec3, dt: f64) -> DQuat {
     let half = 0.5 * dt * angular_velocity;
     let t2 = half.length_squared();

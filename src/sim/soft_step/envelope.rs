@@ -1,7 +1,7 @@
 //! Symmetric positive definite matrices stored by their envelope (profile, skyline; George and
 //! Liu, "Computer Solution of Large Sparse Positive Definite Systems", 1981, ch. 4): row `i`
-//! keeps its entries from its first non-zero column to the diagonal, and the Cholesky factor
-//! fits in the same places. A chain's system in link order is tridiagonal, so storing,
+//! keeps its entries from its first non-zero column to the diagonal, and the factors of
+//! `L D L^T` fit in the same places. A chain's system in link order is tridiagonal, so storing,
 //! factoring and solving take time and memory linear in its length, where a dense matrix would
 //! take the square (memory) and the cube (time).
 
@@ -85,53 +85,60 @@ pub fn principal(
     }
 }
 
-/// Overwrites `values` with the Cholesky factor `L` of `K` (`K = L L^T`) row by row, and
-/// `inverse_diagonal` with the reciprocals of its diagonal; false if `K` is not positive
-/// definite.
-pub fn cholesky_factor(rows: &[Row], values: &mut [f64], inverse_diagonal: &mut Vec<f64>) -> bool {
+/// Overwrites `values` with the factors of `K = L D L^T` (Golub and Van Loan, "Matrix
+/// Computations", 4.1.2) row by row: `L`'s entries left of the diagonal (its diagonal is one)
+/// and `D` on the diagonal, and `inverse_diagonal` with `D`'s reciprocals; false if `K` is not
+/// positive definite. Against Cholesky's `L L^T` a row costs one division and no square root,
+/// and each row waits on the one before it (a chain's system is tridiagonal).
+pub fn ldl_factor(rows: &[Row], values: &mut [f64], inverse_diagonal: &mut Vec<f64>) -> bool {
     let n = rows.len();
     inverse_diagonal.clear();
     inverse_diagonal.resize(n, 0.0);
     for i in 0..n {
         let (first_i, offset_i) = (rows[i].first, rows[i].offset);
-        // L_ij = (K_ij - sum_p L_ip L_jp) / L_jj over the columns both rows hold.
+        // First `u_ij = L_ij D_j = K_ij - sum_p u_ip L_jp` over the columns both rows hold
+        // (`L_jp` of the rows above is final) ...
         for j in first_i..i {
             let (first_j, offset_j) = (rows[j].first, rows[j].offset);
             let mut s = values[offset_i + j - first_i];
             for p in first_i.max(first_j)..j {
                 s -= values[offset_i + p - first_i] * values[offset_j + p - first_j];
             }
-            values[offset_i + j - first_i] = s * inverse_diagonal[j];
+            values[offset_i + j - first_i] = s;
         }
+        // ... then `D_i = K_ii - sum_p u_ip L_ip` and `L_ip = u_ip / D_p`.
         let mut d = values[offset_i + i - first_i];
         for p in first_i..i {
-            let l = values[offset_i + p - first_i];
-            d -= l * l;
+            let u = values[offset_i + p - first_i];
+            let l = u * inverse_diagonal[p];
+            d -= u * l;
+            values[offset_i + p - first_i] = l;
         }
         if d <= 1e-300 || !d.is_finite() {
             return false;
         }
-        let d = d.sqrt();
         values[offset_i + i - first_i] = d;
         inverse_diagonal[i] = 1.0 / d;
     }
     true
 }
 
-/// Solves `K x = b` in place (`x` holds `b`) with the factor [`cholesky_factor`] left:
-/// `L y = b` by rows, then `L^T x = y` by columns of `L^T` (rows of `L`), both within the
+/// Solves `K x = b` in place (`x` holds `b`) with the factors [`ldl_factor`] left: `L y = b`
+/// by rows, `D z = y`, then `L^T x = z` by columns of `L^T` (rows of `L`), all within the
 /// envelope.
-pub fn cholesky_substitute(rows: &[Row], factor: &[f64], inverse_diagonal: &[f64], x: &mut [f64]) {
+pub fn ldl_substitute(rows: &[Row], factor: &[f64], inverse_diagonal: &[f64], x: &mut [f64]) {
     let n = rows.len();
     for i in 0..n {
         let mut s = x[i];
         for p in rows[i].first..i {
             s -= factor[at(rows, i, p)] * x[p];
         }
-        x[i] = s * inverse_diagonal[i];
+        x[i] = s;
+    }
+    for (xi, inverse) in x.iter_mut().zip(inverse_diagonal) {
+        *xi *= inverse;
     }
     for i in (0..n).rev() {
-        x[i] *= inverse_diagonal[i];
         let xi = x[i];
         for p in rows[i].first..i {
             x[p] -= factor[at(rows, i, p)] * xi;
@@ -187,7 +194,7 @@ mod tests {
     /// the envelope factorisation solves them as elimination does; a principal submatrix and a
     /// product by rows agree with the dense matrix's.
     #[test]
-    fn envelope_cholesky_solves_sparse_and_dense_systems() {
+    fn envelope_ldl_solves_sparse_and_dense_systems() {
         let mut rng = Rng::new(7);
         for (case, n) in [(0, 9), (1, 12), (2, 7), (1, 48), (0, 300), (2, 60)] {
             // Edges of a graph on the rows; K = D + sum over edges of a coupling (diagonally
@@ -241,8 +248,8 @@ mod tests {
                 let expected = eliminate(system, b[..size].to_vec(), size);
                 let mut x = b[..size].to_vec();
                 let mut inverse_diagonal = Vec::new();
-                assert!(cholesky_factor(&rows, &mut values, &mut inverse_diagonal));
-                cholesky_substitute(&rows, &values, &inverse_diagonal, &mut x);
+                assert!(ldl_factor(&rows, &mut values, &mut inverse_diagonal));
+                ldl_substitute(&rows, &values, &inverse_diagonal, &mut x);
                 for (got, want) in x.iter().zip(&expected) {
                     assert!(
                         (got - want).abs() < 1e-10 * (1.0 + want.abs()),
@@ -253,6 +260,6 @@ mod tests {
         }
         // Not positive definite: refused.
         let (rows, mut values) = envelope_of(&[1.0, 2.0, 2.0, 1.0], 2);
-        assert!(!cholesky_factor(&rows, &mut values, &mut Vec::new()));
+        assert!(!ldl_factor(&rows, &mut values, &mut Vec::new()));
     }
 }

@@ -1,6 +1,6 @@
 //! Distance constraints solved exactly, a connected group (a chain, a pendulum) at a time: the
 //! rows whose bound is reached or about to be form a small symmetric positive definite system
-//! `K lambda = b` with `K = J M^-1 J^T`, solved directly (Cholesky) under the rows' sign limits by
+//! `K lambda = b` with `K = J M^-1 J^T`, solved directly (`L D L^T`) under the rows' sign limits by
 //! an active-set loop; positions are then projected the same way (non-linear Gauss-Seidel with
 //! an exact block). Gauss-Seidel would need about as many sweeps as a chain has links to pass a
 //! load from its end to its anchor (the coursework needs hundreds of visits per step); a
@@ -158,12 +158,12 @@ struct Scratch {
     side: Vec<Side>,
     active: Vec<usize>,
     x: Vec<f64>,
-    /// The Cholesky factor of `K`'s active rows and columns, by its envelope.
+    /// The `L D L^T` factors of `K`'s active rows and columns, by its envelope.
     factor: Factor,
 }
 
-/// A Cholesky factor `L` (`K = L L^T`) kept by its envelope ([`envelope`]), with the
-/// reciprocals of its diagonal.
+/// The factors of `K = L D L^T` kept by its envelope ([`envelope`]): `L` left of the diagonal,
+/// `D` on it, and `D`'s reciprocals.
 #[derive(Debug, Clone, Default)]
 struct Factor {
     rows: Vec<Row>,
@@ -328,6 +328,10 @@ fn records_of(constraints: &[DistanceConstraint]) -> Vec<DistanceRecord> {
     out
 }
 
+// `geometry` and `jacobian` are inlined into their loops: called, their results came back
+// through the stack, and reading them back in wider loads than they were written in stalled
+// (a third of the velocity pass's own samples in `perf` on the two chains).
+#[inline(always)]
 fn geometry(r: &DistanceRecord, a: &RigidBody, b: &RigidBody) -> Option<Geometry> {
     let r1 = a.orientation * r.local1;
     let r2 = b.orientation * r.local2;
@@ -343,6 +347,7 @@ fn geometry(r: &DistanceRecord, a: &RigidBody, b: &RigidBody) -> Option<Geometry
 
 /// The row's Jacobian at geometry `g`; `inverse(b)` is body b's inverse mass and world inverse
 /// inertia.
+#[inline(always)]
 fn jacobian(
     r: &DistanceRecord,
     g: &Geometry,
@@ -474,10 +479,10 @@ impl Factor {
     /// system for `x`, which holds the right-hand side; false if it is not positive definite.
     fn solve(&mut self, rows: &[Row], (k, active): (&[f64], &[usize]), x: &mut [f64]) -> bool {
         envelope::principal((rows, k), active, (&mut self.rows, &mut self.values));
-        if !envelope::cholesky_factor(&self.rows, &mut self.values, &mut self.inverse_diagonal) {
+        if !envelope::ldl_factor(&self.rows, &mut self.values, &mut self.inverse_diagonal) {
             return false;
         }
-        envelope::cholesky_substitute(&self.rows, &self.values, &self.inverse_diagonal, x);
+        envelope::ldl_substitute(&self.rows, &self.values, &self.inverse_diagonal, x);
         true
     }
 }
