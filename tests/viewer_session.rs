@@ -182,7 +182,9 @@ fn a_grab_pulls_with_the_force_of_a_critically_damped_spring() {
         let body = s.world().bodies[0].clone();
         let target = body.position + DVec3::new(2.0, 3.0, -1.0);
         assert!(s.grab(0, DVec3::ZERO, target), "{what}");
-        let (point, force) = grab::force(s.world()).unwrap();
+        // In free fall every step takes the setting's substeps.
+        assert_eq!(s.lanes[0].last.substeps, settings.substeps, "{what}");
+        let (point, force) = grab::force(s.world(), s.lanes[0].last.substeps).unwrap();
         assert_eq!(point, body.position);
         let h = settings.time_step / settings.substeps as f64;
         let expected = spring_force(
@@ -208,6 +210,62 @@ fn a_grab_pulls_with_the_force_of_a_critically_damped_spring() {
             "{what}: {offset} from the target"
         );
     }
+}
+
+/// A box resting on the ground at dt 0.04: the soft step's steps that begin touching take eight
+/// substeps, not the setting's four, and the grab's displayed force is the spring's over the
+/// substep the solver takes (a fixed four would show a force 1 / (1 + h^2 k / m + h d / m)
+/// apart).
+#[test]
+fn the_grab_force_shown_is_over_the_substep_the_soft_step_takes() {
+    let settings = Settings {
+        time_step: 0.04,
+        ..Settings::accurate()
+    };
+    let shape = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(1.0, 0.5, 0.75))).unwrap();
+    let body = RigidBody::on_shape(
+        &shape,
+        0,
+        50.0,
+        false,
+        DVec3::new(0.0, 0.5, 0.0),
+        DQuat::IDENTITY,
+    );
+    let world = World::new(
+        vec![shape],
+        vec!["box".into()],
+        vec![body],
+        Vec::new(),
+        settings.clone(),
+    );
+    let mut s = Session::new(world, SceneSource::named("a box on the ground"));
+    s.grab_hertz = 3.0;
+    for _ in 0..5 {
+        s.step_once();
+    }
+    let substeps = s.lanes[0].last.substeps;
+    assert_eq!(substeps, 8, "a touching step at dt 0.04");
+    let body = s.world().bodies[0].clone();
+    let target = body.position + DVec3::new(0.0, 3.0, 0.0);
+    assert!(s.grab(0, DVec3::ZERO, target));
+    let (_, force) = grab::force(s.world(), substeps).unwrap();
+    let h = settings.time_step / 8.0;
+    let expected = spring_force(
+        body.mass,
+        3.0,
+        h,
+        body.position - target,
+        body.linear_velocity,
+    );
+    assert!(
+        (force - expected).length() <= 1e-9 * expected.length(),
+        "force {force} vs the spring's {expected} over h = {h}"
+    );
+    let (_, four) = grab::force(s.world(), 0).unwrap();
+    assert!(
+        (four - expected).length() > 1e-6 * expected.length(),
+        "the setting's substeps give another force"
+    );
 }
 
 /// The grabbed point moves the same way on a light and a heavy body: the force scales with the

@@ -89,12 +89,19 @@ pub fn place(world: &mut World) {
 }
 
 /// The grabbed point in world space and the spring's force on it over the next (sub)step, for
-/// display.
-pub fn force(world: &World) -> Option<(DVec3, DVec3)> {
+/// display. `last_substeps` is what the last step took (the soft step takes more than the
+/// setting's in a step that begins touching at dt above 0.02; 0 for a step skipped at rest,
+/// then the setting's count is used).
+pub fn force(world: &World, last_substeps: u32) -> Option<(DVec3, DVec3)> {
     let grab = world.grab?;
     let body = world.bodies.get(grab.body)?;
     let settings = &world.settings;
-    let h = settings.time_step / settings.substeps.max(1) as f64;
+    let substeps = if last_substeps > 0 {
+        last_substeps
+    } else {
+        settings.substeps
+    };
+    let h = settings.time_step / substeps.max(1) as f64;
     let velocities = (body.linear_velocity, body.angular_velocity);
     let (arm, impulse) = grab.impulse(body, velocities, h)?;
     Some((body.position + arm, impulse / h))

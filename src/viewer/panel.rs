@@ -862,7 +862,7 @@ fn status_lines(ui: &mut egui::Ui, session: &Session) {
 /// The grab's force and the picked body's mass and velocities.
 fn selection_lines(ui: &mut egui::Ui, session: &Session, state: &PanelState) {
     let world = session.world();
-    if let Some((_, force)) = super::grab::force(world) {
+    if let Some((_, force)) = super::grab::force(world, session.lanes[0].last.substeps) {
         let text = if session.playing {
             format!("grab: force {:.4e}", force.length())
         } else {
