@@ -170,6 +170,28 @@ fn spring_force(m: f64, hertz: f64, h: f64, c: DVec3, v: DVec3) -> DVec3 {
     -(k * c + (h * k + d) * v) / (1.0 + (h * h * k + h * d) / m)
 }
 
+/// Asserts that `force` is [`spring_force`] at 3 Hz on the grabbed `body` pulled to `target` over
+/// a substep `h`; returns that force.
+fn assert_grab_spring(
+    force: DVec3,
+    (body, target): (&RigidBody, DVec3),
+    h: f64,
+    what: &str,
+) -> DVec3 {
+    let expected = spring_force(
+        body.mass,
+        3.0,
+        h,
+        body.position - target,
+        body.linear_velocity,
+    );
+    assert!(
+        (force - expected).length() <= 1e-9 * expected.length(),
+        "{what}: force {force} vs the spring's {expected} over h = {h}"
+    );
+    expected
+}
+
 #[test]
 fn a_grab_pulls_with_the_force_of_a_critically_damped_spring() {
     for settings in [Settings::default(), Settings::accurate()] {
@@ -187,17 +209,7 @@ fn a_grab_pulls_with_the_force_of_a_critically_damped_spring() {
         let (point, force) = grab::force(s.world(), s.lanes[0].last.substeps).unwrap();
         assert_eq!(point, body.position);
         let h = settings.time_step / settings.substeps as f64;
-        let expected = spring_force(
-            body.mass,
-            3.0,
-            h,
-            body.position - target,
-            body.linear_velocity,
-        );
-        assert!(
-            (force - expected).length() <= 1e-9 * expected.length(),
-            "{what}: force {force} vs the spring's {expected}"
-        );
+        assert_grab_spring(force, (&body, target), h, &what);
         // Pulled to the target within 2 s (from 3.7 units away), hanging under it: gravity
         // stretches the spring by g / omega^2, and by up to twice that with the step's damping.
         for _ in 0..100 {
@@ -249,18 +261,7 @@ fn the_grab_force_shown_is_over_the_substep_the_soft_step_takes() {
     let target = body.position + DVec3::new(0.0, 3.0, 0.0);
     assert!(s.grab(0, DVec3::ZERO, target));
     let (_, force) = grab::force(s.world(), substeps).unwrap();
-    let h = settings.time_step / 8.0;
-    let expected = spring_force(
-        body.mass,
-        3.0,
-        h,
-        body.position - target,
-        body.linear_velocity,
-    );
-    assert!(
-        (force - expected).length() <= 1e-9 * expected.length(),
-        "force {force} vs the spring's {expected} over h = {h}"
-    );
+    let expected = assert_grab_spring(force, (&body, target), settings.time_step / 8.0, "");
     let (_, four) = grab::force(s.world(), 0).unwrap();
     assert!(
         (four - expected).length() > 1e-6 * expected.length(),
