@@ -737,14 +737,21 @@ pub fn for_each_contact_in(
     f: impl Fn(&mut ContactConstraint, &mut [ContactPoint], &mut SolverBody, &mut SolverBody) + Sync,
 ) {
     let (bodies, points) = (Shared::new(bodies), Shared::new(points));
+    // The bodies are where a pass waits at 100,000 bodies (18 MiB of them, read in colour
+    // order); the constraints and points are read in order and need no hint.
+    let ahead = |c: &ContactConstraint| {
+        let (i, j) = c.bodies();
+        bodies.prefetch(i);
+        bodies.prefetch(j);
+    };
     let each = |c: &mut ContactConstraint| {
         // SAFETY: within a colour a constraint's points and moving bodies are its own.
         let contact_points = unsafe { points.slice(c.points()) };
         unsafe { with_pair(&bodies, c.bodies(), |b1, b2| f(c, contact_points, b1, b2)) }
     };
     match selected {
-        Some(selected) => colours.for_each_selected(constraints, selected, each),
-        None => colours.for_each(constraints, each),
+        Some(selected) => colours.for_each_selected(constraints, selected, ahead, each),
+        None => colours.for_each(constraints, ahead, each),
     }
 }
 
