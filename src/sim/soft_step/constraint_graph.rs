@@ -88,7 +88,7 @@ impl Colours {
 
     /// Runs `f` on every constraint, colour after colour (the constraints are in colour order,
     /// like the manifolds they were made from); see [`Colours::run`]. `f` may touch only its
-    /// constraint's bodies and points. `ahead` is shown the constraint [`AHEAD`] places further
+    /// constraint's bodies and points. `ahead` is shown the constraint `AHEAD` places further
     /// on in the same thread's share before each call of `f`, to ask the cache for what it will
     /// read ([`Shared::prefetch`]); it changes nothing.
     pub fn for_each<C: Send>(
