@@ -138,28 +138,33 @@ fn compared_worlds_step_with_their_own_settings() {
     );
 }
 
-/// Two boxes far apart in the air, of densities 60x apart.
-fn two_boxes(settings: Settings) -> Session {
+/// Boxes of 2 x 1 x 1.5 at `(density, position, orientation)`, in a session named `name`.
+fn boxes(settings: Settings, placed: &[(f64, DVec3, DQuat)], name: &str) -> Session {
     let shape = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(1.0, 0.5, 0.75))).unwrap();
-    let body = |density, x| {
-        RigidBody::on_shape(
-            &shape,
-            0,
-            density,
-            false,
-            DVec3::new(x, 40.0, 0.0),
-            DQuat::from_rotation_z(0.3),
-        )
-    };
-    let bodies = vec![body(50.0, -20.0), body(3000.0, 20.0)];
+    let bodies = placed
+        .iter()
+        .map(|&(density, position, orientation)| {
+            RigidBody::on_shape(&shape, 0, density, false, position, orientation)
+        })
+        .collect();
     let world = World::new(
-        vec![shape.clone()],
+        vec![shape],
         vec!["box".into()],
         bodies,
         Vec::new(),
         settings,
     );
-    Session::new(world, SceneSource::named("two boxes"))
+    Session::new(world, SceneSource::named(name))
+}
+
+/// Two boxes far apart in the air, of densities 60x apart.
+fn two_boxes(settings: Settings) -> Session {
+    let tilt = DQuat::from_rotation_z(0.3);
+    let placed = [
+        (50.0, DVec3::new(-20.0, 40.0, 0.0), tilt),
+        (3000.0, DVec3::new(20.0, 40.0, 0.0), tilt),
+    ];
+    boxes(settings, &placed, "two boxes")
 }
 
 /// The closed form of a critically damped spring-damper of frequency `hertz` on mass `m`,
@@ -234,23 +239,8 @@ fn the_grab_force_shown_is_over_the_substep_the_soft_step_takes() {
         time_step: 0.04,
         ..Settings::accurate()
     };
-    let shape = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(1.0, 0.5, 0.75))).unwrap();
-    let body = RigidBody::on_shape(
-        &shape,
-        0,
-        50.0,
-        false,
-        DVec3::new(0.0, 0.5, 0.0),
-        DQuat::IDENTITY,
-    );
-    let world = World::new(
-        vec![shape],
-        vec!["box".into()],
-        vec![body],
-        Vec::new(),
-        settings.clone(),
-    );
-    let mut s = Session::new(world, SceneSource::named("a box on the ground"));
+    let on_ground = [(50.0, DVec3::new(0.0, 0.5, 0.0), DQuat::IDENTITY)];
+    let mut s = boxes(settings.clone(), &on_ground, "a box on the ground");
     s.grab_hertz = 3.0;
     for _ in 0..5 {
         s.step_once();
