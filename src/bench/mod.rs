@@ -17,7 +17,7 @@ pub mod scenarios;
 pub mod soak;
 
 /// How a long benchmark reports its progress (the CLI draws a progress bar).
-pub trait Progress {
+pub trait Progress: Sync {
     /// `total` units of work lie ahead.
     fn start(&self, total: u64, what: &str);
     /// What is being measured now.

@@ -144,31 +144,41 @@ pub struct Run {
 }
 
 /// Runs `world` for `duration` simulated seconds calling `observe` after every step; returns
-/// the wall seconds of stepping (observation excluded) per simulated second.
+/// the wall seconds of stepping (observation excluded) per simulated second. The steps run in
+/// the thread pool as a whole ([`crate::sim::parallel::in_pool`]), as `bench scale`'s do: one
+/// hand-over per step from outside it was a fixed cost of the host (pile_rest under the soft
+/// step took 1.4-1.6x the time of an earlier run of the same bits on another machine, where
+/// every other scenario, which steps on the calling thread, and Rapier took the same or less).
 fn simulate(
     engine: Engine,
     world: &mut World,
     duration: f64,
-    mut observe: impl FnMut(&World, &crate::StepStats),
+    mut observe: impl FnMut(&World, &crate::StepStats) + Send,
 ) -> f64 {
     let steps = if world.settings.time_step > 0.0 {
         (duration / world.settings.time_step).round() as usize
     } else {
         0
     };
-    let mut stepping = 0.0;
     let mut step = stepper(engine, world);
-    for _ in 0..steps {
-        let start = Instant::now();
-        let stats = step(world);
-        stepping += start.elapsed().as_secs_f64();
-        observe(world, &stats);
-    }
+    let stepping = crate::sim::parallel::in_pool(|| {
+        let mut stepping = 0.0;
+        for _ in 0..steps {
+            let start = Instant::now();
+            let stats = step(world);
+            stepping += start.elapsed().as_secs_f64();
+            observe(world, &stats);
+        }
+        stepping
+    });
     stepping / duration
 }
 
+/// A function that advances a world by one step with `engine`.
+type Stepper = Box<dyn FnMut(&mut World) -> crate::StepStats + Send>;
+
 /// A function that advances `world` by one step with `engine`.
-fn stepper(engine: Engine, world: &World) -> Box<dyn FnMut(&mut World) -> crate::StepStats> {
+fn stepper(engine: Engine, world: &World) -> Stepper {
     match engine {
         Engine::Tumble => Box::new(|w: &mut World| w.step()),
         #[cfg(feature = "compare-rapier")]

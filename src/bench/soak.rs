@@ -75,14 +75,17 @@ pub fn run(
         let mut watch = Watch::default();
         progress.start(steps, &format!("soak {scene}"));
         let start = Instant::now();
-        for k in 0..steps {
-            let stats = world.step();
-            let late = k >= steps - steps / 10;
-            watch.observe(&world, stats.budget_hit, k + 1 == settle_steps, late);
-            if k % 1024 == 0 {
-                progress.set_position(k);
+        // In the pool as a whole: one hand-over, not one per step (see `in_pool`).
+        crate::sim::parallel::in_pool(|| {
+            for k in 0..steps {
+                let stats = world.step();
+                let late = k >= steps - steps / 10;
+                watch.observe(&world, stats.budget_hit, k + 1 == settle_steps, late);
+                if k % 1024 == 0 {
+                    progress.set_position(k);
+                }
             }
-        }
+        });
         progress.finish();
         results.push(SoakResult {
             scene: scene.to_string(),

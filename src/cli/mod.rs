@@ -182,26 +182,35 @@ pub fn progress_bar(len: u64, what: &str) -> indicatif::ProgressBar {
     bar
 }
 
-/// A benchmark's progress as a bar on stderr (nothing when stderr is not a terminal).
+/// A benchmark's progress as a bar on stderr (nothing when stderr is not a terminal). Behind a
+/// lock: the benchmarks step in the thread pool, whose thread reports.
 #[derive(Default)]
-pub struct ProgressBar(std::cell::RefCell<Option<indicatif::ProgressBar>>);
+pub struct ProgressBar(std::sync::Mutex<Option<indicatif::ProgressBar>>);
+
+impl ProgressBar {
+    fn bar(&self) -> std::sync::MutexGuard<'_, Option<indicatif::ProgressBar>> {
+        self.0
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+}
 
 impl tumble::bench::Progress for ProgressBar {
     fn start(&self, total: u64, what: &str) {
-        *self.0.borrow_mut() = Some(progress_bar(total, what));
+        *self.bar() = Some(progress_bar(total, what));
     }
     fn message(&self, text: &str) {
-        if let Some(bar) = &*self.0.borrow() {
+        if let Some(bar) = &*self.bar() {
             bar.set_message(text.to_string());
         }
     }
     fn set_position(&self, done: u64) {
-        if let Some(bar) = &*self.0.borrow() {
+        if let Some(bar) = &*self.bar() {
             bar.set_position(done);
         }
     }
     fn finish(&self) {
-        if let Some(bar) = self.0.borrow_mut().take() {
+        if let Some(bar) = self.bar().take() {
             bar.finish_and_clear();
         }
     }

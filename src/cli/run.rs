@@ -113,9 +113,25 @@ fn simulate(
     steps: u64,
     world: &mut tumble::World,
     summary: &mut RunSummary,
-    mut trajectory: Option<&mut tumble::io::AtomicFile>,
+    trajectory: Option<&mut tumble::io::AtomicFile>,
 ) -> anyhow::Result<u64> {
     let bar = progress_bar(steps, "simulating");
+    // In the thread pool as a whole: one hand-over, not one per step (see `in_pool`).
+    let completed = tumble::sim::parallel::in_pool(|| {
+        steps_until_interrupted(steps, world, summary, trajectory, &bar)
+    })?;
+    bar.finish_and_clear();
+    Ok(completed)
+}
+
+/// The loop of [`simulate`].
+fn steps_until_interrupted(
+    steps: u64,
+    world: &mut tumble::World,
+    summary: &mut RunSummary,
+    mut trajectory: Option<&mut tumble::io::AtomicFile>,
+    bar: &indicatif::ProgressBar,
+) -> anyhow::Result<u64> {
     let mut completed = 0;
     for k in 0..steps {
         if super::interrupt::interrupted() {
@@ -138,7 +154,6 @@ fn simulate(
         }
         completed = k + 1;
     }
-    bar.finish_and_clear();
     Ok(completed)
 }
 

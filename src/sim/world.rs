@@ -89,8 +89,9 @@ impl World {
             // step instead of one per loop (pile-200 under the soft step: four passes of every
             // colour per substep; sparse-1000 under the coursework solver: 40 % of a one-thread
             // step was spent switching threads). A scene with nothing awake stays here: its step
-            // has no loop to split.
-            return rayon::scope(|_| self.step());
+            // has no loop to split. A loop of many steps is better run in the pool as a whole
+            // ([`super::parallel::in_pool`]): each hand-over here wakes an idle core.
+            return super::parallel::in_pool(|| self.step());
         }
         let ctx = StepContext::new(&self.settings, self.constraints.len());
         let stats = match ctx.settings.solver {
