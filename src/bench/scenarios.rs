@@ -144,11 +144,12 @@ pub struct Run {
 }
 
 /// Runs `world` for `duration` simulated seconds calling `observe` after every step; returns
-/// the wall seconds of stepping (observation excluded) per simulated second. The steps run in
-/// the thread pool as a whole ([`crate::sim::parallel::in_pool`]), as `bench scale`'s do: one
-/// hand-over per step from outside it was a fixed cost of the host (pile_rest under the soft
+/// the wall seconds of stepping (observation excluded) per simulated second. The loop runs
+/// where the world's steps run ([`World::stepping`]), in the thread pool for pile_rest as
+/// `bench scale`'s loops do: handed over once a step from outside it, pile_rest under the soft
 /// step took 1.4-1.6x the time of an earlier run of the same bits on another machine, where
-/// every other scenario, which steps on the calling thread, and Rapier took the same or less).
+/// every other scenario (small enough to step on the calling thread) and Rapier took the same
+/// or less.
 fn simulate(
     engine: Engine,
     world: &mut World,
@@ -161,7 +162,7 @@ fn simulate(
         0
     };
     let mut step = stepper(engine, world);
-    let stepping = crate::sim::parallel::in_pool(|| {
+    let stepping = world.stepping(|world| {
         let mut stepping = 0.0;
         for _ in 0..steps {
             let start = Instant::now();

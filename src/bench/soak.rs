@@ -75,12 +75,11 @@ pub fn run(
         let mut watch = Watch::default();
         progress.start(steps, &format!("soak {scene}"));
         let start = Instant::now();
-        // In the pool as a whole: one hand-over, not one per step (see `in_pool`).
-        crate::sim::parallel::in_pool(|| {
+        world.stepping(|world| {
             for k in 0..steps {
                 let stats = world.step();
                 let late = k >= steps - steps / 10;
-                watch.observe(&world, stats.budget_hit, k + 1 == settle_steps, late);
+                watch.observe(world, stats.budget_hit, k + 1 == settle_steps, late);
                 if k % 1024 == 0 {
                     progress.set_position(k);
                 }

@@ -116,10 +116,9 @@ fn simulate(
     trajectory: Option<&mut tumble::io::AtomicFile>,
 ) -> anyhow::Result<u64> {
     let bar = progress_bar(steps, "simulating");
-    // In the thread pool as a whole: one hand-over, not one per step (see `in_pool`).
-    let completed = tumble::sim::parallel::in_pool(|| {
-        steps_until_interrupted(steps, world, summary, trajectory, &bar)
-    })?;
+    // Where the world's steps run: in the thread pool, handed over once, for a large scene.
+    let completed =
+        world.stepping(|world| steps_until_interrupted(steps, world, summary, trajectory, &bar))?;
     bar.finish_and_clear();
     Ok(completed)
 }

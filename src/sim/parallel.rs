@@ -10,11 +10,10 @@
 use rayon::iter::plumbing::{Producer, ProducerCallback};
 use rayon::prelude::*;
 
-/// Runs `f` on a thread of rayon's pool, or right here when already on one. A step from outside
-/// the pool hands its work over and waits for it ([`crate::World::step`]); a loop of steps run
-/// through this hands over once. Each hand-over wakes an idle core: on the 2-core virtual
-/// machine of the measurements that took 40-105 us (an empty hand-over, one thread or two, idle
-/// 0-1000 us before), a sixth of a pile-200 step under the soft step.
+/// Runs `f` on a thread of rayon's pool, or right here when already on one. Each hand-over
+/// wakes an idle core: on a 2-core virtual machine an empty one took 40-105 us (one thread or
+/// two, the pool idle for 0-1000 us before), a sixth of a pile-200 step under the soft step;
+/// hence [`crate::World::stepping`] for loops of steps.
 pub fn in_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
     match rayon::current_thread_index() {
         Some(_) => f(),
