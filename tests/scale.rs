@@ -5,7 +5,7 @@ mod common;
 use tumble::sim::settings::{BroadPhase, ConstraintSchedule};
 use tumble::{ConstraintsChoice, Settings, World};
 
-fn trajectory(mut world: World, steps: usize) -> Vec<u64> {
+fn trajectory(world: &mut World, steps: usize) -> Vec<u64> {
     let mut bits = Vec::new();
     for _ in 0..steps {
         world.step();
@@ -87,7 +87,7 @@ fn grid_broad_phase_reproduces_all_pairs_bit_for_bit() {
             contacts += probe.step().contacts;
         }
         assert!(
-            trajectory(a, 300) == trajectory(b, 300),
+            trajectory(&mut { a }, 300) == trajectory(&mut { b }, 300),
             "{name}: grid and all-pairs trajectories differ"
         );
     }
@@ -103,7 +103,7 @@ fn results_do_not_depend_on_thread_count() {
         common::with_threads(threads, || {
             scenes(&Settings::default())
                 .into_iter()
-                .map(|(_, w)| trajectory(w, 200))
+                .map(|(_, mut w)| trajectory(&mut w, 200))
                 .collect::<Vec<_>>()
         })
     };
@@ -112,6 +112,24 @@ fn results_do_not_depend_on_thread_count() {
         "1 and 2 threads give different trajectories"
     );
     assert!(run(2) == run(2), "two runs give different trajectories");
+}
+
+/// `World::stepping` runs a loop of steps where the world's steps run, in the thread pool for a
+/// scene of 64 bodies or more and on the calling thread below: the same bits as the steps called
+/// one by one from outside the pool, under either solver.
+#[test]
+fn a_loop_of_steps_run_where_its_steps_run_gives_their_bits() {
+    for settings in [Settings::default(), Settings::accurate()] {
+        for (name, world) in scenes(&settings).into_iter().take(7) {
+            let expected = trajectory(&mut world.clone(), 120);
+            let (on_pool, looped) = world.clone().stepping(|w| {
+                let on_pool = rayon::current_thread_index().is_some();
+                (on_pool, trajectory(w, 120))
+            });
+            assert_eq!(on_pool, world.bodies.len() >= 64, "{name}: where it ran");
+            assert!(looped == expected, "{name}: other bits");
+        }
+    }
 }
 
 #[test]
