@@ -147,7 +147,7 @@ pub struct Run {
 /// the wall seconds of stepping (observation excluded) per simulated second. The loop runs
 /// where the world's steps run ([`World::stepping`]), in the thread pool for pile_rest as
 /// `bench scale`'s loops do: handed over once a step from outside it, pile_rest under the soft
-/// step took 1.4-1.6x the time of an earlier run of the same bits on another machine, where
+/// step took 1.4-1.7x the time of an earlier run of the same bits on another machine, where
 /// every other scenario (small enough to step on the calling thread) and Rapier took the same
 /// or less.
 fn simulate(
