@@ -81,9 +81,8 @@ impl World {
     /// Runs `steps`, a loop of this world's steps, where [`World::step`] runs each step: in the
     /// thread pool for a scene of [`IN_POOL_BODIES`] bodies or more, so the loop hands its work
     /// over once instead of once a step (each hand-over wakes an idle core: 40-105 us on a 2-core
-    /// virtual machine, see [`super::parallel::in_pool`]); a smaller scene's steps stay on this
-    /// thread, where they ran 2-3 % faster than on a pool thread (`bench accuracy`'s tower and
-    /// mixed scene).
+    /// virtual machine, see [`super::parallel::in_pool`]); a smaller scene's steps never hand
+    /// over, so its loop stays on this thread.
     pub fn stepping<R: Send>(&mut self, steps: impl FnOnce(&mut World) -> R + Send) -> R {
         if self.bodies.len() >= IN_POOL_BODIES {
             super::parallel::in_pool(|| steps(self))
@@ -105,7 +104,7 @@ impl World {
             // step was spent switching threads). A scene with nothing awake stays here: its step
             // has no loop to split. A loop of many steps is better run in the pool as a whole
             // ([`World::stepping`]): each hand-over here wakes an idle core.
-            return super::parallel::in_pool(|| self.step());
+            return rayon::scope(|_| self.step());
         }
         let ctx = StepContext::new(&self.settings, self.constraints.len());
         let stats = match ctx.settings.solver {
