@@ -693,6 +693,29 @@ fn results_do_not_depend_on_the_thread_count() {
     }
 }
 
+/// Small scenes just over the thresholds at which the threads share a pass (64 manifolds, 64
+/// joint groups), so that the unsafe code behind the sharing (`constraint_graph::Shared`,
+/// `with_pair`) can also run under Miri, where the tests above would take hours:
+/// `MIRIFLAGS="-Zmiri-tree-borrows -Zmiri-ignore-leaks" cargo +nightly miri test --test
+/// soft_step shared_passes` (about 10 minutes; rayon's pool threads outlive the test, hence
+/// the leaks flag; under Stacked Borrows Miri stops first in crossbeam-epoch, rayon's
+/// dependency).
+#[test]
+fn shared_passes_give_the_bits_of_one_thread() {
+    use tumble::scene::generate;
+    // A column of 70 boxes: 70 manifolds a pass from the first step, in two colours; 64 chains
+    // of ten links: 64 joint groups.
+    for (family, n, steps) in [("stack", 70, 3), ("chain", 640, 1)] {
+        let run = |threads| {
+            common::with_threads(threads, || {
+                let mut world = generate::by_name(family, n, accurate(0.02)).unwrap();
+                trajectory(&mut world, steps)
+            })
+        };
+        assert!(run(1) == run(2), "{family}-{n}: 1 and 2 threads differ");
+    }
+}
+
 #[test]
 fn the_coursework_solver_ignores_the_soft_step_settings() {
     for scene in ["mixed", "two-chain"] {
