@@ -208,6 +208,14 @@ fn mesh_file_errors() {
         Some(11),
         "only 4 vertices",
     );
+    // The largest index a u32 holds after the shift to 0-based: named as written, not
+    // wrapped to 0 (found by `cargo fuzz run medit`; an overflow panic with overflow checks).
+    expect(
+        mesh(&TET.replace("1 2 3 4 0", "1 2 3 4294967296 0")),
+        "m.mesh",
+        Some(11),
+        "refers to vertex 4294967296 but the mesh has only 4 vertices",
+    );
     expect(
         mesh(&TET.replace("1 2 3 4 0", "0 2 3 4 0")),
         "m.mesh",

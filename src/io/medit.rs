@@ -128,7 +128,7 @@ fn check_indices(
                 line,
                 format!(
                     "{what} refers to vertex {} but the mesh has only {vertex_count} vertices",
-                    index + 1
+                    u64::from(index) + 1
                 ),
             ));
         }
