@@ -192,6 +192,15 @@ fn scene_file_errors() {
     );
     // A fixed body may have any density, even zero.
     assert!(load(&dir, "1\nt.mesh 0 1 0 0 0 1 0 0 0\n", None).is_ok());
+    // A quaternion whose length overflows (components finite, their squares not) is a
+    // rotation like any other: the same as its components scaled down, not "zero".
+    let orientation = |q: &str| {
+        let world = load(&dir, &format!("1\nt.mesh 1 0 0 0 0 {q}\n"), None);
+        world.unwrap_or_else(|e| panic!("{q}: {e}")).bodies[0].orientation
+    };
+    let huge = orientation("1e200 2e200 0 -2e200");
+    let small = orientation("1 2 0 -2");
+    assert!(huge.angle_between(small) < 1e-12, "{huge} against {small}");
 }
 
 #[test]
@@ -265,6 +274,16 @@ fn mesh_file_errors() {
         None,
         "zero volume",
     );
+    // Finite coordinates whose volume overflows: too large, not degenerate.
+    expect(
+        mesh(&TET.replace(
+            "1 0 0 0\n0 1 0 0\n0 0 1 0",
+            "1e200 0 0 0\n0 1e200 0 0\n0 0 1e200 0",
+        )),
+        "m.mesh",
+        None,
+        "too large",
+    );
     // A tetrahedron wound the other way is the same solid (as in the coursework's skeleton,
     // which takes each tetrahedron's absolute volume).
     assert!(mesh(&TET.replace("1 2 3 4 0", "2 1 3 4 0")).is_ok());
@@ -293,6 +312,14 @@ fn mesh_file_errors() {
         "only 4 vertices",
     );
     expect(off("PLY\n"), "m.off", Some(1), "'OFF' header");
+    expect(
+        off(
+            "OFF\n4 4 0\n0 0 0\n1e200 0 0\n0 1e200 0\n0 0 1e200\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n",
+        ),
+        "m.off",
+        None,
+        "too large",
+    );
     expect(
         off("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"),
         "m.off",

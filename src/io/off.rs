@@ -82,7 +82,15 @@ fn fan_tetrahedralise(
         volume += v;
         moment += v * (a + b + c) / 4.0;
     }
-    if volume == 0.0 || !volume.is_finite() {
+    if !volume.is_finite() || !moment.is_finite() {
+        // The coordinates are finite (checked as read), so the sums overflowed.
+        return Err(LoadError::new(
+            file,
+            None,
+            "the surface is too large: its volume overflows double precision",
+        ));
+    }
+    if volume == 0.0 {
         return Err(LoadError::new(
             file,
             None,

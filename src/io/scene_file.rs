@@ -48,20 +48,18 @@ pub fn parse_scene(file: &Path, text: &str) -> Result<Vec<SceneRecord>, LoadErro
         let (qx, _) = tokens.real("the quaternion x")?;
         let (qy, _) = tokens.real("the quaternion y")?;
         let (qz, _) = tokens.real("the quaternion z")?;
-        let q = DQuat::from_xyzw(qx, qy, qz, qw);
-        let norm = q.length();
-        if norm.is_nan() || norm <= 1e-12 || !norm.is_finite() {
+        let Some(orientation) = normalised(DQuat::from_xyzw(qx, qy, qz, qw)) else {
             return Err(tokens.error(
                 q_line,
                 "the orientation quaternion is zero and cannot be normalised",
             ));
-        }
+        };
         records.push(SceneRecord {
             mesh_path,
             density,
             fixed,
             position: DVec3::new(x, y, z),
-            orientation: q / norm,
+            orientation,
             line,
         });
     }
@@ -73,4 +71,15 @@ pub fn parse_scene(file: &Path, text: &str) -> Result<Vec<SceneRecord>, LoadErro
         ));
     }
     Ok(records)
+}
+
+/// The unit quaternion along `q` (finite components), or None for a length of 1e-12 or less.
+/// Components whose squares overflow are scaled down first: still a rotation, not "zero".
+fn normalised(q: DQuat) -> Option<DQuat> {
+    let norm = q.length();
+    if norm.is_infinite() {
+        let scaled = q / glam::DVec4::from(q).abs().max_element();
+        return Some(scaled / scaled.length());
+    }
+    (norm > 1e-12).then(|| q / norm)
 }

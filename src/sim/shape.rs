@@ -23,6 +23,8 @@ pub enum ShapeError {
     NoHull,
     #[error("the mesh has non-finite coordinates")]
     NonFinite,
+    #[error("the mesh is too large: its volume overflows double precision")]
+    TooLarge,
 }
 
 /// Volume, centre of mass and inertia tensor (about the centre of mass, unit density) of a
@@ -131,7 +133,11 @@ impl Shape {
             .map(|v| v.abs().max_element())
             .fold(0.0, f64::max)
             .max(1e-300);
-        if !props.volume.is_finite() || props.volume <= 1e-12 * scale.powi(3) {
+        // The coordinates are finite, so a volume that is not finite overflowed on the way.
+        if !props.volume.is_finite() {
+            return Err(ShapeError::TooLarge);
+        }
+        if props.volume <= 1e-12 * scale.powi(3) {
             return Err(ShapeError::Degenerate);
         }
         let rest_vertices: Vec<DVec3> = mesh
