@@ -265,7 +265,7 @@ fn mesh_file_errors() {
         mesh(&TET.replace("End", "Bogus 1")),
         "m.mesh",
         Some(12),
-        "unknown section",
+        "unknown section 'Bogus'",
     );
     // Degenerate: all four vertices coplanar.
     expect(
@@ -320,11 +320,126 @@ fn mesh_file_errors() {
         None,
         "too large",
     );
+    // Closed but flat: two faces back to back.
     expect(
-        off("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"),
+        off("OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 2 1\n"),
         "m.off",
         None,
         "encloses no volume",
+    );
+}
+
+/// A unit right tetrahedron as OFF faces (outward), vertices 0 1 2 3 at the origin and the axes.
+const TET_FACES: [&str; 4] = ["3 0 2 1", "3 0 1 3", "3 0 3 2", "3 1 2 3"];
+
+fn tet_off(vertices: &str, faces: &[&str]) -> String {
+    let count = vertices.lines().count();
+    format!(
+        "OFF\n{count} {} 0\n{vertices}{}\n",
+        faces.len(),
+        faces.join("\n")
+    )
+}
+
+/// The fan over an OFF surface is its volume only when the surface is closed and wound one way:
+/// an open or inconsistently wound surface is refused (before: loaded with part of its mass, a
+/// tetrahedron missing a face at 2/3 of it); one cut along a seam into patches that share
+/// points but not indices is closed.
+#[test]
+fn off_surfaces_must_be_closed() {
+    let dir = Dir::new("off-closed");
+    let off = |text: &str| {
+        dir.write("m.off", text);
+        load(&dir, "1\nm.off 6 0 0 5 0 1 0 0 0\n", None)
+    };
+    let corners = "0 0 0\n1 0 0\n0 1 0\n0 0 1\n";
+    let whole = off(&tet_off(corners, &TET_FACES)).unwrap();
+    assert!((whole.bodies[0].mass - 1.0).abs() < 1e-12, "6 x 1/6");
+    expect(
+        off(&tet_off(corners, &TET_FACES[..3])),
+        "m.off",
+        None,
+        "not closed: the edge between vertices 1 and 2",
+    );
+    expect(
+        off(&tet_off(
+            corners,
+            &[TET_FACES[0], TET_FACES[1], TET_FACES[2], "3 1 3 2"],
+        )),
+        "m.off",
+        None,
+        "wound the same way",
+    );
+    // The last face on a copy of vertex 1 (index 4) at the same point: a seam, still closed.
+    let seamed = off(&tet_off(
+        &format!("{corners}1 0 0\n"),
+        &[TET_FACES[0], TET_FACES[1], TET_FACES[2], "3 4 2 3"],
+    ))
+    .unwrap();
+    assert!((seamed.bodies[0].mass - 1.0).abs() < 1e-12);
+    // Two closed tetrahedra apart: loads (as a tetrahedral mesh of them would in the
+    // coursework) with a warning that the body is not convex.
+    let far = "5 5 5\n6 5 5\n5 6 5\n5 5 6\n";
+    let shift = |face: &str| {
+        let mut words = face.split(' ');
+        let n = words.next().unwrap().to_string();
+        let moved: Vec<String> = words
+            .map(|i| (i.parse::<u32>().unwrap() + 4).to_string())
+            .collect();
+        format!("{n} {}", moved.join(" "))
+    };
+    let faces: Vec<String> = TET_FACES
+        .iter()
+        .map(|f| f.to_string())
+        .chain(TET_FACES.iter().map(|f| shift(f)))
+        .collect();
+    let faces: Vec<&str> = faces.iter().map(String::as_str).collect();
+    let pair = off(&tet_off(&format!("{corners}{far}"), &faces)).unwrap();
+    assert!(
+        pair.warnings.len() == 1 && pair.warnings[0].contains("m.off: the mesh is not convex"),
+        "{:?}",
+        pair.warnings
+    );
+    assert!(whole.warnings.is_empty() && seamed.warnings.is_empty());
+}
+
+/// The readers take records as one stream of words (as the coursework's do), so a field
+/// missing on one line shifts the records after it. Every coursework file holds one record a
+/// line: the first line that does not is named in the error, or in a warning when the shifted
+/// words still parse.
+#[test]
+fn records_out_of_step_name_their_line() {
+    let dir = Dir::new("layout");
+    dir.write("t.mesh", TET);
+    expect(
+        load(&dir, "1\nt.mesh 1 0 0 0 0 1 0 0\n", None),
+        "s-scene.txt",
+        Some(1),
+        "line 2 holds 9 fields where a body record has 10",
+    );
+    let scene = "2\nt.mesh 1 0 0 0 0 1 0 0 0\nt.mesh 1 0 3 0 0 1 0 0 0\n";
+    // An extra field on line 2 and one missing on line 3: still 12 words, read out of step as
+    // body 1 vertex 0 to body 0 vertex 3.
+    let shifted = load(&dir, scene, Some("2\n0 0 1 0 0.9 1.1 1\n0 0 3 0.9 1.1\n")).unwrap();
+    assert_eq!(shifted.warnings.len(), 1, "{:?}", shifted.warnings);
+    let warning = &shifted.warnings[0];
+    assert!(
+        warning.contains("s-constraints.txt:2:")
+            && warning.contains("holds 7 fields where a constraint record has 6"),
+        "{warning}"
+    );
+    // A byte-order mark before the count is not a word of the file.
+    assert!(load(&dir, &format!("\u{feff}{scene}"), None).is_ok());
+    // One record a line, as every coursework file: no warning.
+    let aligned = load(&dir, scene, Some("1\n0 0 1 0 0.9 1.1\n")).unwrap();
+    assert!(aligned.warnings.is_empty(), "{:?}", aligned.warnings);
+    // A Medit vertex with a field missing: the error where the words ran out names its line.
+    dir.write("t.mesh", &TET.replace("0 1 0 0\n", "0 1 0\n"));
+    let err = load(&dir, "1\nt.mesh 1 0 0 0 0 1 0 0 0\n", None).unwrap_err();
+    assert!(
+        err.message
+            .contains("line 7 holds 3 fields where a vertex record has 4: x y z reference"),
+        "{err}"
     );
 }
 
@@ -509,3 +624,4 @@ fn bench_options_out_of_range_are_named() {
     }
     assert!(!out_dir.exists(), "nothing written");
 }
+

@@ -1,9 +1,9 @@
 //! Constraint files: a count M, then M records `m1 v1 m2 v2 lower upper` (0-based body and
 //! vertex indices, bounds as fractions of the initial distance).
 
-use super::LoadError;
 use super::limits::MAX_CONSTRAINTS;
-use super::tokens::Tokens;
+use super::tokens::{RecordLayout, Tokens};
+use super::{LoadError, Records};
 use std::path::Path;
 
 #[derive(Debug, Clone, PartialEq)]
@@ -17,9 +17,18 @@ pub struct ConstraintRecord {
     pub line: usize,
 }
 
-pub fn parse_constraints(file: &Path, text: &str) -> Result<Vec<ConstraintRecord>, LoadError> {
+const CONSTRAINT_RECORD: RecordLayout = RecordLayout {
+    name: "a constraint record",
+    fields: &["m1", "v1", "m2", "v2", "lower", "upper"],
+};
+
+pub fn parse_constraints(file: &Path, text: &str) -> Result<Records<ConstraintRecord>, LoadError> {
     let mut tokens = Tokens::new(file, text);
-    let count = tokens.count("the number of constraints", 6, MAX_CONSTRAINTS)?;
+    let count = tokens.count_records(
+        "the number of constraints",
+        &CONSTRAINT_RECORD,
+        MAX_CONSTRAINTS,
+    )?;
     let mut records = Vec::with_capacity(count);
     for _ in 0..count {
         let (body1, line) = tokens.index("the first body index")?;
@@ -51,5 +60,8 @@ pub fn parse_constraints(file: &Path, text: &str) -> Result<Vec<ConstraintRecord
             format!("the file declares {count} constraints but has more records after them"),
         ));
     }
-    Ok(records)
+    Ok(Records {
+        records,
+        layout_warning: tokens.layout_warning(),
+    })
 }

@@ -2,11 +2,24 @@
 //! `Tetrahedra`, 1-based indices, each row ending in a reference number that is ignored.
 
 use super::limits::MAX_MESH_ELEMENTS;
-use super::tokens::Tokens;
+use super::tokens::{RecordLayout, Tokens};
 use super::{LoadError, TetMesh};
 use glam::DVec3;
 use std::fmt::Write;
 use std::path::Path;
+
+const VERTEX_RECORD: RecordLayout = RecordLayout {
+    name: "a vertex record",
+    fields: &["x", "y", "z", "reference"],
+};
+const TRIANGLE_RECORD: RecordLayout = RecordLayout {
+    name: "a triangle record",
+    fields: &["v1", "v2", "v3", "reference"],
+};
+const TETRAHEDRON_RECORD: RecordLayout = RecordLayout {
+    name: "a tetrahedron record",
+    fields: &["v1", "v2", "v3", "v4", "reference"],
+};
 
 /// Parses a Medit mesh. The coursework stores boundary triangles wound inward and flips them on
 /// load; so does this reader (the geometry stage then checks the orientation and repairs it).
@@ -19,8 +32,8 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
     let mut tri_lines = Vec::new();
 
     while let Some(token) = tokens.peek() {
-        let keyword = token.text.to_ascii_lowercase();
-        let line = token.line;
+        let (written, line) = (token.text, token.line);
+        let keyword = written.to_ascii_lowercase();
         tokens.next("a section keyword")?;
         match keyword.as_str() {
             "meshversionformatted" | "dimension" => {
@@ -33,7 +46,8 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
                 }
             }
             "vertices" => {
-                let count = tokens.count("the vertex count", 4, MAX_MESH_ELEMENTS)?;
+                let count =
+                    tokens.count_records("the vertex count", &VERTEX_RECORD, MAX_MESH_ELEMENTS)?;
                 mesh.vertices.reserve(count);
                 for _ in 0..count {
                     let (x, _) = tokens.real("a vertex x coordinate")?;
@@ -45,7 +59,11 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
                 seen_vertices = true;
             }
             "triangles" => {
-                let count = tokens.count("the triangle count", 4, MAX_MESH_ELEMENTS)?;
+                let count = tokens.count_records(
+                    "the triangle count",
+                    &TRIANGLE_RECORD,
+                    MAX_MESH_ELEMENTS,
+                )?;
                 mesh.triangles.reserve(count);
                 for _ in 0..count {
                     let line = tokens.line();
@@ -59,7 +77,11 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
                 }
             }
             "tetrahedra" => {
-                let count = tokens.count("the tetrahedron count", 5, MAX_MESH_ELEMENTS)?;
+                let count = tokens.count_records(
+                    "the tetrahedron count",
+                    &TETRAHEDRON_RECORD,
+                    MAX_MESH_ELEMENTS,
+                )?;
                 mesh.tetrahedra.reserve(count);
                 for _ in 0..count {
                     let line = tokens.line();
@@ -77,8 +99,8 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
                 skip_records(&mut tokens, "the record count", 1)?
             }
             "end" => break,
-            other => {
-                return Err(tokens.error(line, format!("unknown section '{other}' (expected Vertices, Triangles, Tetrahedra, Edges or End)")));
+            _ => {
+                return Err(tokens.error(line, format!("unknown section '{written}' (expected Vertices, Triangles, Tetrahedra, Edges or End)")));
             }
         }
     }

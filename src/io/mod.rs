@@ -35,6 +35,24 @@ pub mod limits {
     pub const MAX_CONSTRAINTS: usize = 1_000_000;
 }
 
+/// The records of a scene or constraint file, and a warning when they were not laid out one a
+/// line: the file loaded, but a missing field on one line and an extra one on another would
+/// have shifted the records between them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Records<T> {
+    pub records: Vec<T>,
+    pub layout_warning: Option<LoadError>,
+}
+
+impl<T> Default for Records<T> {
+    fn default() -> Self {
+        Self {
+            records: Vec::new(),
+            layout_warning: None,
+        }
+    }
+}
+
 /// A problem with an input file: which file, which line (1-based) when one is to blame, and what.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LoadError {

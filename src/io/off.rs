@@ -3,10 +3,16 @@
 //! and star-shaped meshes.
 
 use super::limits::MAX_MESH_ELEMENTS;
-use super::tokens::Tokens;
+use super::tokens::{RecordLayout, Tokens};
 use super::{LoadError, TetMesh};
 use glam::DVec3;
+use std::collections::HashMap;
 use std::path::Path;
+
+const VERTEX_RECORD: RecordLayout = RecordLayout {
+    name: "a vertex record",
+    fields: &["x", "y", "z"],
+};
 
 pub fn parse_off(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
     let mut tokens = Tokens::new(file, text);
@@ -28,6 +34,7 @@ pub fn parse_off(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
             format!("the face count {face_count} is more than the file can hold"),
         ));
     }
+    tokens.begin_records(vertex_count, &VERTEX_RECORD);
     let mut vertices = Vec::with_capacity(vertex_count);
     for _ in 0..vertex_count {
         let (x, _) = tokens.real("a vertex x coordinate")?;
@@ -63,7 +70,50 @@ pub fn parse_off(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
     if triangles.is_empty() {
         return Err(LoadError::new(file, None, "the surface has no faces"));
     }
+    if let Some(problem) = unmatched_edge(&vertices, &triangles) {
+        return Err(LoadError::new(file, None, problem));
+    }
     fan_tetrahedralise(file, vertices, triangles)
+}
+
+/// Why the surface does not bound a volume, if it does not: the first edge (by vertex index)
+/// whose faces do not pair up, one on each side and wound against each other. The fan below
+/// (the divergence theorem) is exact only for a closed, consistently wound surface; an open one
+/// would be simulated with part of its mass. Vertices at the same point are one vertex, so a
+/// surface cut into patches along seams (as exporters write them for normals) is still closed.
+fn unmatched_edge(vertices: &[DVec3], triangles: &[[u32; 3]]) -> Option<String> {
+    let mut first_at: HashMap<[u64; 3], u32> = HashMap::new();
+    let weld: Vec<u32> = (0..vertices.len() as u32)
+        .map(|i| {
+            // (+ 0.0 makes -0.0 the same point as 0.0.)
+            let key = (vertices[i as usize] + DVec3::ZERO)
+                .to_array()
+                .map(f64::to_bits);
+            *first_at.entry(key).or_insert(i)
+        })
+        .collect();
+    // Each edge a -> b counts +1 on (a, b) for a < b and -1 otherwise: 0 when its faces pair up.
+    let mut balance: HashMap<(u32, u32), i32> = HashMap::new();
+    for t in triangles {
+        for k in 0..3 {
+            let (a, b) = (weld[t[k] as usize], weld[t[(k + 1) % 3] as usize]);
+            match a.cmp(&b) {
+                std::cmp::Ordering::Less => *balance.entry((a, b)).or_default() += 1,
+                std::cmp::Ordering::Greater => *balance.entry((b, a)).or_default() -= 1,
+                std::cmp::Ordering::Equal => {}
+            }
+        }
+    }
+    let ((a, b), count) = balance.into_iter().filter(|&(_, c)| c != 0).min()?;
+    Some(if count % 2 != 0 {
+        format!(
+            "the surface is not closed: the edge between vertices {a} and {b} (0-based) has a face on one side only"
+        )
+    } else {
+        format!(
+            "the faces on the edge between vertices {a} and {b} (0-based) are wound the same way: a closed surface's faces are all wound one way round"
+        )
+    })
 }
 
 /// Builds tetrahedra (centroid, a, b, c) over a closed surface, orienting the triangles outward.

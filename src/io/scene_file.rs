@@ -1,9 +1,9 @@
 //! Scene files: a count N, then N records `mesh_path density is_fixed x y z qw qx qy qz`
 //! separated by any white space. Mesh paths are relative to the scene file's folder.
 
-use super::LoadError;
 use super::limits::MAX_BODIES;
-use super::tokens::Tokens;
+use super::tokens::{RecordLayout, Tokens};
+use super::{LoadError, Records};
 use glam::{DQuat, DVec3};
 use std::path::Path;
 
@@ -19,9 +19,16 @@ pub struct SceneRecord {
     pub line: usize,
 }
 
-pub fn parse_scene(file: &Path, text: &str) -> Result<Vec<SceneRecord>, LoadError> {
+const BODY_RECORD: RecordLayout = RecordLayout {
+    name: "a body record",
+    fields: &[
+        "mesh", "density", "is_fixed", "x", "y", "z", "qw", "qx", "qy", "qz",
+    ],
+};
+
+pub fn parse_scene(file: &Path, text: &str) -> Result<Records<SceneRecord>, LoadError> {
     let mut tokens = Tokens::new(file, text);
-    let count = tokens.count("the number of bodies", 10, MAX_BODIES)?;
+    let count = tokens.count_records("the number of bodies", &BODY_RECORD, MAX_BODIES)?;
     let mut records = Vec::with_capacity(count);
     for _ in 0..count {
         let name = tokens.next("a mesh file name")?;
@@ -70,7 +77,10 @@ pub fn parse_scene(file: &Path, text: &str) -> Result<Vec<SceneRecord>, LoadErro
             format!("the file declares {count} bodies but has more records after them"),
         ));
     }
-    Ok(records)
+    Ok(Records {
+        records,
+        layout_warning: tokens.layout_warning(),
+    })
 }
 
 /// The unit quaternion along `q` (finite components), or None for a length of 1e-12 or less.

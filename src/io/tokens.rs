@@ -3,6 +3,38 @@
 use super::LoadError;
 use std::path::Path;
 
+/// What one record of a file holds, for messages that say where a record went out of step.
+pub struct RecordLayout {
+    /// "a body record", "a constraint record", ...
+    pub name: &'static str,
+    /// Its fields in order, e.g. `["m1", "v1", "m2", "v2", "lower", "upper"]`.
+    pub fields: &'static [&'static str],
+}
+
+/// A line that does not hold one whole record: where, how many fields, and what a record is.
+struct LayoutBreak {
+    line: usize,
+    fields: usize,
+    layout: &'static RecordLayout,
+}
+
+impl LayoutBreak {
+    fn describe(&self) -> String {
+        format!(
+            "holds {} fields where {} has {}: {}",
+            self.fields,
+            self.layout.name,
+            self.layout.fields.len(),
+            self.layout.fields.join(" ")
+        )
+    }
+
+    /// The break as a note to an error found on a later line.
+    fn note(&self) -> String {
+        format!("line {} {}", self.line, self.describe())
+    }
+}
+
 pub struct Token<'a> {
     pub text: &'a str,
     pub line: usize,
@@ -15,10 +47,15 @@ pub struct Tokens<'a> {
     next: usize,
     file: &'a Path,
     last_line: usize,
+    /// The first line of the current run of records that does not hold one whole record, said
+    /// in every error from the line before it on: how a record read out of step shows.
+    layout_break: Option<LayoutBreak>,
 }
 
 impl<'a> Tokens<'a> {
     pub fn new(file: &'a Path, text: &'a str) -> Self {
+        // A byte-order mark (some Windows editors write one) is not a word of the file.
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let mut tokens = Vec::new();
         let mut last_line = 1;
         for (index, line) in text.lines().enumerate() {
@@ -39,11 +76,54 @@ impl<'a> Tokens<'a> {
             next: 0,
             file,
             last_line,
+            layout_break: None,
         }
     }
 
+    /// An error at `line`; past a line that breaks the records' layout it names that line too.
     pub fn error(&self, line: usize, message: impl Into<String>) -> LoadError {
+        let mut message = message.into();
+        if let Some(at) = &self.layout_break
+            && at.line <= line
+        {
+            message = format!("{message} ({})", at.note());
+        }
         LoadError::new(self.file, Some(line), message)
+    }
+
+    /// Notes that `count` records of `layout` follow. The readers take any white space between
+    /// fields, as the coursework's stream readers do, but every coursework file holds one record
+    /// a line, so the first line that does not is where a missing or extra field shows.
+    pub fn begin_records(&mut self, count: usize, layout: &'static RecordLayout) {
+        let width = layout.fields.len();
+        let mut end = self.tokens.len().min(self.next + count * width);
+        // The window's last line counted whole: a field too many on it is a break too.
+        while end > self.next
+            && end < self.tokens.len()
+            && self.tokens[end].line == self.tokens[end - 1].line
+        {
+            end += 1;
+        }
+        self.layout_break = self.tokens[self.next..end]
+            .chunk_by(|a, b| a.line == b.line)
+            .find(|line| line.len() != width)
+            .map(|line| LayoutBreak {
+                line: line[0].line,
+                fields: line.len(),
+                layout,
+            });
+    }
+
+    /// The line that breaks the layout of the records read since [`Tokens::begin_records`], as
+    /// an error message, for a file that loaded but may not hold what was meant.
+    pub fn layout_warning(&self) -> Option<LoadError> {
+        self.layout_break.as_ref().map(|at| {
+            let message = format!(
+                "the line {}; read as one stream of words, as the coursework's reader reads it, the records from here on may not be what was meant",
+                at.describe()
+            );
+            LoadError::new(self.file, Some(at.line), message)
+        })
     }
 
     /// Tokens not yet consumed: an upper bound on how many records can follow, used to refuse
@@ -110,6 +190,30 @@ impl<'a> Tokens<'a> {
         limit: usize,
     ) -> Result<usize, LoadError> {
         let (count, line) = self.index(what)?;
+        self.layout_break = None;
+        self.check_count(what, (count, line), tokens_per_record, limit)
+    }
+
+    /// A count of records of `layout` that follow one a line, at most `limit`; errors from here
+    /// on name the first line that breaks the layout ([`Tokens::begin_records`]).
+    pub fn count_records(
+        &mut self,
+        what: &str,
+        layout: &'static RecordLayout,
+        limit: usize,
+    ) -> Result<usize, LoadError> {
+        let (count, line) = self.index(what)?;
+        self.begin_records(count.min(limit), layout);
+        self.check_count(what, (count, line), layout.fields.len(), limit)
+    }
+
+    fn check_count(
+        &self,
+        what: &str,
+        (count, line): (usize, usize),
+        tokens_per_record: usize,
+        limit: usize,
+    ) -> Result<usize, LoadError> {
         if count > limit {
             return Err(self.error(
                 line,
@@ -118,10 +222,12 @@ impl<'a> Tokens<'a> {
         }
         let available = self.remaining() / tokens_per_record.max(1);
         if count > available {
-            return Err(self.error(
-                line,
-                format!("{what} says {count} but the file holds at most {available} such records"),
-            ));
+            let mut message =
+                format!("{what} says {count} but the file holds at most {available} such records");
+            if let Some(at) = &self.layout_break {
+                message = format!("{message} ({})", at.note());
+            }
+            return Err(LoadError::new(self.file, Some(line), message));
         }
         Ok(count)
     }

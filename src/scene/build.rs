@@ -22,7 +22,9 @@ pub(super) fn load_with(
     settings: Settings,
 ) -> Result<World, LoadError> {
     let text = source.read(path)?;
-    let records = parse_scene(path, &text)?;
+    let scene = parse_scene(path, &text)?;
+    let records = scene.records;
+    let mut warnings: Vec<String> = scene.layout_warning.iter().map(|w| w.to_string()).collect();
     let folder = path.parent().unwrap_or(Path::new(""));
 
     let mut shapes = Vec::new();
@@ -35,6 +37,7 @@ pub(super) fn load_with(
             Some(&index) => index,
             None => {
                 let shape = load_shape(source, &mesh_path, path, record)?;
+                warnings.extend(convexity_warning(&shape, &mesh_path));
                 shapes.push(shape);
                 shape_names.push(record.mesh_path.clone());
                 shape_of_path.insert(mesh_path, shapes.len() - 1);
@@ -70,7 +73,6 @@ pub(super) fn load_with(
             super::default_constraints_path(path).filter(|p| source.exists(p))
         }
     };
-    let mut warnings = Vec::new();
     let mut distance_constraints = Vec::new();
     if let Some(cpath) = constraint_path {
         // A user-named file is read from disk even when the scene is built in.
@@ -78,13 +80,32 @@ pub(super) fn load_with(
             ConstraintsChoice::File(_) => Disk.read(&cpath)?,
             _ => source.read(&cpath)?,
         };
-        let records = parse_constraints(&cpath, &text)?;
+        let parsed = parse_constraints(&cpath, &text)?;
+        warnings.extend(parsed.layout_warning.map(|w| w.to_string()));
         distance_constraints =
-            build_constraints(&cpath, &records, &bodies, &shapes, &mut warnings)?;
+            build_constraints(&cpath, &parsed.records, &bodies, &shapes, &mut warnings)?;
     }
     let mut world = World::new(shapes, shape_names, bodies, distance_constraints, settings);
     world.warnings = warnings;
     Ok(world)
+}
+
+/// Below this share of its hull's volume a mesh is called out as not convex. Not 1: a coarse
+/// tetrahedral mesh of a convex solid dents its surface (the coursework's cylinder.mesh fills
+/// 96.7 % of its hull), and the course simulates it as it is.
+const CONVEX: f64 = 0.9;
+
+/// A warning for a mesh that is not convex: the coursework's bodies are; tumble collides the
+/// hull and weighs the mesh, so such a body rests and tumbles as neither would.
+fn convexity_warning(shape: &Shape, mesh_path: &Path) -> Option<String> {
+    let share = shape.convexity();
+    (share < CONVEX).then(|| {
+        format!(
+            "{}: the mesh is not convex (its volume is {:.1} % of its convex hull's): collisions use the hull, mass and inertia the mesh",
+            mesh_path.display(),
+            100.0 * share
+        )
+    })
 }
 
 fn load_shape(

@@ -188,6 +188,13 @@ fn hull_is_box(points: &[DVec3], center: DVec3, half: DVec3) -> bool {
 }
 
 impl Shape {
+    /// The mesh's volume over its convex hull's: 1 for a convex mesh (to rounding). Collisions
+    /// see the hull and mass and inertia come from the mesh, so below 1 the two disagree.
+    pub fn convexity(&self) -> f64 {
+        use parry3d_f64::shape::Shape as _;
+        self.volume / self.hull.mass_properties(1.0).mass()
+    }
+
     /// Largest distance of a rest vertex from the centre of mass.
     pub fn bounding_radius(&self) -> f64 {
         self.rest_vertices

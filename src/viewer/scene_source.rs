@@ -76,7 +76,7 @@ impl SceneSource {
         }
         let folder = scene.parent().unwrap_or(Path::new(""));
         let text = std::fs::read_to_string(&scene).unwrap_or_default();
-        for record in parse_scene(&scene, &text).unwrap_or_default() {
+        for record in parse_scene(&scene, &text).unwrap_or_default().records {
             let mesh = folder.join(&record.mesh_path);
             if !files.contains(&mesh) {
                 files.push(mesh);
