@@ -223,6 +223,7 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
 pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     use tumble::viewer::{DrawOptions, OutputKind, RecordOptions};
     let kind = OutputKind::of(&args.output)?;
+    tumble::io::check_output_path(&args.output)?;
     let (width, height) = args.size.unwrap_or(if kind == OutputKind::Gif {
         (640, 360)
     } else {

@@ -16,22 +16,49 @@ pub fn partial_path(path: &Path) -> PathBuf {
     path.with_file_name(format!(".{name}.partial"))
 }
 
-/// A file being written; [`AtomicFile::commit`] moves it to its final name.
+/// Refuses an output path that cannot become a file (a folder, or a file in a folder that does
+/// not exist), so that a long run does not end in that error.
+pub fn check_output_path(path: &Path) -> anyhow::Result<()> {
+    if path.is_dir() {
+        anyhow::bail!("cannot write {}: it is a folder", path.display());
+    }
+    match path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        Some(folder) if !folder.is_dir() => anyhow::bail!(
+            "cannot write {}: the folder {} does not exist",
+            path.display(),
+            folder.display()
+        ),
+        _ => Ok(()),
+    }
+}
+
+/// A file being written; [`AtomicFile::commit`] moves it to its final name. Dropped without a
+/// commit (an error on the way), it removes what it wrote.
 pub struct AtomicFile {
     path: PathBuf,
     tmp: PathBuf,
     writer: BufWriter<File>,
+    committed: bool,
 }
 
 impl AtomicFile {
+    /// Errors name `path`, the file the user asked for, not the temporary one; a folder or a
+    /// missing parent folder is refused here, before any work is done for the file.
     pub fn create(path: &Path) -> anyhow::Result<Self> {
+        check_output_path(path)?;
         let tmp = partial_path(path);
-        let file =
-            File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
+        let file = File::create(&tmp).with_context(|| {
+            format!(
+                "cannot write {} (as {} first)",
+                path.display(),
+                tmp.display()
+            )
+        })?;
         Ok(Self {
             path: path.to_path_buf(),
             tmp,
             writer: BufWriter::new(file),
+            committed: false,
         })
     }
 
@@ -43,15 +70,24 @@ impl AtomicFile {
     pub fn commit(mut self) -> anyhow::Result<()> {
         self.writer
             .flush()
-            .with_context(|| format!("cannot write {}", self.tmp.display()))?;
-        drop(self.writer);
+            .with_context(|| format!("cannot write {}", self.path.display()))?;
         std::fs::rename(&self.tmp, &self.path).with_context(|| {
             format!(
-                "cannot move {} to {}",
-                self.tmp.display(),
-                self.path.display()
+                "cannot write {} (moving {} into place)",
+                self.path.display(),
+                self.tmp.display()
             )
-        })
+        })?;
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Drop for AtomicFile {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
     }
 }
 
@@ -61,7 +97,34 @@ pub fn write_file_atomically(
     write: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>,
 ) -> anyhow::Result<()> {
     let mut file = AtomicFile::create(path)?;
-    write(file.writer())
-        .with_context(|| format!("cannot write {}", partial_path(path).display()))?;
+    write(file.writer()).with_context(|| format!("cannot write {}", path.display()))?;
     file.commit()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Committed, the file is in place and nothing else; dropped on an error before its commit,
+    /// neither it nor its partial file is left.
+    #[test]
+    fn a_file_appears_whole_or_not_at_all() {
+        let dir = std::env::temp_dir().join(format!("tumble-atomic-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (kept, dropped) = (dir.join("kept.txt"), dir.join("dropped.txt"));
+        let mut file = AtomicFile::create(&kept).unwrap();
+        file.writer().write_all(b"whole").unwrap();
+        file.commit().unwrap();
+        let mut file = AtomicFile::create(&dropped).unwrap();
+        file.writer().write_all(b"half").unwrap();
+        assert!(partial_path(&dropped).exists());
+        drop(file);
+        let names: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, vec![std::ffi::OsString::from("kept.txt")]);
+        assert_eq!(std::fs::read_to_string(&kept).unwrap(), "whole");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

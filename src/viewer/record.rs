@@ -69,8 +69,13 @@ impl GifEncoder {
     /// Writes into `path`'s partial file, renamed into place by [`Encoder::finish`].
     fn create(path: &Path, width: u32, height: u32, fps: f64) -> anyhow::Result<GifEncoder> {
         let tmp = partial_path(path);
-        let file = std::fs::File::create(&tmp)
-            .with_context(|| format!("cannot create {}", tmp.display()))?;
+        let file = std::fs::File::create(&tmp).with_context(|| {
+            format!(
+                "cannot write {} (as {} first)",
+                path.display(),
+                tmp.display()
+            )
+        })?;
         let mut encoder = gif::Encoder::new(
             std::io::BufWriter::new(file),
             width as u16,
