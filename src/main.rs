@@ -51,7 +51,8 @@ enum BenchCommand {
     /// fastest of a job's runs: three, and more until its steps took 0.1 s, at most 15,
     /// interleaved with the other combinations' at the same scenario and dt).
     Accuracy(cli::bench::AccuracyArgs),
-    /// The tower and the chains for 100,000 steps: drift, violation, energy.
+    /// The tower, a stack of ten built at rest and the two chains for 100,000 steps (--steps):
+    /// drift, violation, energy. A quick look: --steps 5000.
     Soak(cli::bench::SoakArgs),
 }
 

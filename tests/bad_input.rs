@@ -527,6 +527,44 @@ fn cli_reports_errors_and_exits_nonzero() {
     );
 }
 
+/// An output that cannot be written is refused before the run, in the user's words (it used to
+/// fail after the whole run, naming the temporary `.NAME.partial` file and leaving it behind).
+#[cfg(feature = "cli")]
+#[test]
+fn cli_refuses_an_output_it_cannot_write_before_running() {
+    let dir = Dir::new("cli-out");
+    let folder = dir.0.join("a-folder");
+    std::fs::create_dir(&folder).unwrap();
+    let missing = dir.0.join("no-such-folder").join("t.csv");
+    for (target, words) in [
+        (
+            &folder,
+            format!("cannot write {}: it is a folder", folder.display()),
+        ),
+        (
+            &missing,
+            format!(
+                "the folder {} does not exist",
+                dir.0.join("no-such-folder").display()
+            ),
+        ),
+    ] {
+        let args = ["run", "cube", "--steps", "5", "--trajectory"].map(std::ffi::OsStr::new);
+        let mut args = args.to_vec();
+        args.push(target.as_os_str());
+        cli_fails_saying(&args, &words);
+    }
+    let left: Vec<_> = std::fs::read_dir(&dir.0)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(
+        left,
+        vec![std::ffi::OsString::from("a-folder")],
+        "files left behind"
+    );
+}
+
 /// Runs `tumble` with `args`; it must fail and say `words` on stderr.
 #[cfg(feature = "cli")]
 fn cli_fails_saying(args: &[&std::ffi::OsStr], words: &str) {
@@ -616,6 +654,11 @@ fn bench_options_out_of_range_are_named() {
             ["accuracy", "--dts", "-0.01"],
             "--dts: time steps must be positive numbers of seconds, got -0.01",
         ),
+        // (It used to run nothing and write empty results.)
+        (
+            ["accuracy", "--combinations", "foo"],
+            "unknown combination 'foo'; this build runs coursework, gyroscopic",
+        ),
     ] {
         let mut all: Vec<&std::ffi::OsStr> = vec!["bench".as_ref()];
         all.extend(args.iter().map(std::ffi::OsStr::new));
@@ -623,5 +666,76 @@ fn bench_options_out_of_range_are_named() {
         cli_fails_saying(&all, words);
     }
     assert!(!out_dir.exists(), "nothing written");
+    // The help lists every combination the bench knows.
+    let help = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))
+        .args(["bench", "accuracy", "--help"])
+        .output()
+        .unwrap();
+    let help = String::from_utf8_lossy(&help.stdout);
+    for name in tumble::bench::accuracy::combination_names() {
+        assert!(help.contains(name), "--help lacks {name}");
+    }
+}
+
+/// `tumble run --help` names every scene it can load by name and the defaults it runs with,
+/// which are those of [`Settings::default`] (the flags are optional so that a given one
+/// overrides `--accurate`; clap cannot show the default itself).
+#[cfg(feature = "cli")]
+#[test]
+fn run_help_names_the_scenes_and_the_defaults() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))
+        .args(["run", "--help"])
+        .output()
+        .unwrap();
+    let help = String::from_utf8_lossy(&out.stdout)
+        .split_whitespace()
+        .collect::<Vec<_>>()
+        .join(" ");
+    let families = tumble::scene::generate::FAMILIES
+        .iter()
+        .map(|(name, _)| *name);
+    for name in tumble::BUILTIN_SCENES
+        .iter()
+        .map(|(name, _)| *name)
+        .chain(families)
+    {
+        assert!(help.contains(name), "--help lacks {name}");
+    }
+    let d = Settings::default();
+    for (flag, value) in [
+        ("Time step in seconds", d.time_step),
+        ("1 = elastic)", d.restitution),
+        ("no friction)", d.friction),
+        ("constraint visits", d.max_iterations as f64),
+        ("Constraint tolerance", d.tolerance),
+        ("bounce with e = 0", d.restitution_threshold),
+        ("longer than 1/200 s)", d.substeps as f64),
+    ] {
+        let said = format!("{flag} [default: {value}");
+        assert!(help.contains(&said), "--help lacks '{said}'");
+    }
+}
+
+/// A flag the chosen solver ignores is accepted with a warning saying so; with the solver it
+/// acts on, no warning.
+#[cfg(feature = "cli")]
+#[test]
+fn cli_warns_of_settings_the_solver_ignores() {
+    let run = |extra: &[&str]| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))
+            .args(["run", "cube", "--steps", "2"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(out.status.success());
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let warned = run(&["--friction", "0.3"]);
+    assert!(
+        warned.contains("warning: --friction acts on the soft-step solver only"),
+        "{warned}"
+    );
+    assert!(!run(&["--friction", "0.3", "--accurate"]).contains("warning"));
+    assert!(run(&["--dt", "0"]).contains("--dt 0: time does not advance"));
 }
 

@@ -110,6 +110,31 @@ fn engines() -> Vec<(&'static str, Settings, Engine)> {
     all
 }
 
+/// Every combination name this build can run, in the results' order.
+pub fn combination_names() -> Vec<&'static str> {
+    engines().into_iter().map(|(name, ..)| name).collect()
+}
+
+/// Refuses a combination name this build cannot run, listing those it can.
+fn check_combinations(names: &[String]) -> anyhow::Result<()> {
+    let known = combination_names();
+    for name in names {
+        if known.contains(&name.as_str()) {
+            continue;
+        }
+        if name == "rapier" {
+            anyhow::bail!(
+                "--combinations: 'rapier' needs a build with Rapier: cargo run --release --features compare-rapier -- bench accuracy ..."
+            );
+        }
+        anyhow::bail!(
+            "--combinations: unknown combination '{name}'; this build runs {}",
+            known.join(", ")
+        );
+    }
+    Ok(())
+}
+
 fn jobs(config: &AccuracyConfig) -> (Vec<Job>, Vec<f64>) {
     let scenarios = if config.scenarios.is_empty() {
         Scenario::ALL.to_vec()
@@ -238,6 +263,7 @@ pub fn run(config: &AccuracyConfig, progress: &dyn Progress) -> anyhow::Result<A
     if let Some(dt) = config.dts.iter().find(|dt| !(dt.is_finite() && **dt > 0.0)) {
         anyhow::bail!("--dts: time steps must be positive numbers of seconds, got {dt}");
     }
+    check_combinations(&config.combinations)?;
     let (jobs, dts) = jobs(config);
     progress.start(jobs.len() as u64, "bench accuracy");
     let mut results = AccuracyResults::new();

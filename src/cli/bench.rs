@@ -62,7 +62,9 @@ pub struct AccuracyArgs {
     /// Time steps to sweep.
     #[arg(long, num_args = 1.., value_delimiter = ',', allow_negative_numbers = true, default_values_t = [0.04, 0.02, 0.01, 0.005, 0.0025])]
     pub dts: Vec<f64>,
-    /// Setting combinations to run (default: all; see the table's rows for their names).
+    /// Setting combinations to run (default: all): coursework, gyroscopic, angular_momentum,
+    /// skip_separating, restitution_threshold, contact_patches, substeps_4, iterations_100,
+    /// sparse_schedule, coursework_tuned, accurate, and rapier (built with compare-rapier).
     #[arg(long, num_args = 1.., value_delimiter = ',')]
     pub combinations: Vec<String>,
     /// Reduced sweep for smoke tests (two time steps, fewer combinations).

@@ -14,24 +14,26 @@ use tumble::{ConstraintsChoice, Settings};
 /// the coursework exactly; every improvement is opt-in.
 #[derive(Debug, Clone, Args)]
 pub struct SettingsArgs {
-    /// Solver: the coursework's method (default) or tumble's soft step.
+    /// Solver: the coursework's method or tumble's soft step [default: coursework; soft-step
+    /// with --accurate].
     #[arg(long, value_enum)]
     pub solver: Option<Solver>,
-    /// Time step in seconds.
+    /// Time step in seconds [default: 0.02].
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub dt: Option<f64>,
-    /// Coefficient of restitution (0 = plastic, 1 = elastic).
+    /// Coefficient of restitution (0 = plastic, 1 = elastic) [default: 1].
     #[arg(long, value_name = "E", allow_negative_numbers = true)]
     pub restitution: Option<f64>,
-    /// Coulomb friction coefficient (soft-step solver; the coursework has no friction).
+    /// Coulomb friction coefficient (soft-step solver; the coursework has no friction)
+    /// [default: 0.5].
     #[arg(long, value_name = "MU", allow_negative_numbers = true)]
     pub friction: Option<f64>,
     /// The coursework's maxIterations: the constraint loop stops once visits x M reach K, M being
     /// the number of inequality constraints (two per constraint record), so a step makes at most
-    /// ceil(K / M) constraint visits.
+    /// ceil(K / M) constraint visits [default: 10000].
     #[arg(long, value_name = "K")]
     pub max_iterations: Option<usize>,
-    /// Constraint tolerance.
+    /// Constraint tolerance [default: 0.001].
     #[arg(long, value_name = "T", allow_negative_numbers = true)]
     pub tolerance: Option<f64>,
     /// Start from the best setting combination found by `tumble bench accuracy`.
@@ -40,7 +42,8 @@ pub struct SettingsArgs {
     /// No impulse for contacts whose bodies already separate.
     #[arg(long)]
     pub skip_separating_contacts: bool,
-    /// Contacts closing slower than this (units/s) bounce with e = 0.
+    /// Contacts closing slower than this (units/s) bounce with e = 0 [default: 0; 0.5 with
+    /// --accurate].
     #[arg(long, value_name = "SPEED", allow_negative_numbers = true)]
     pub restitution_threshold: Option<f64>,
     /// Never put resting islands to sleep (soft-step solver).
@@ -50,16 +53,16 @@ pub struct SettingsArgs {
     #[arg(long)]
     pub contact_patches: bool,
     /// Substeps per step (the soft step takes more in a step that begins with contacts touching
-    /// where N would make them longer than 1/200 s).
+    /// where N would make them longer than 1/200 s) [default: 1; 4 with --accurate].
     #[arg(long, value_name = "N")]
     pub substeps: Option<u32>,
-    /// Rotation integrator.
+    /// Rotation integrator [default: coursework; angular-momentum with --accurate].
     #[arg(long, value_enum)]
     pub rotation_integrator: Option<RotationIntegrator>,
-    /// Broad phase (both give identical results).
+    /// Broad phase (both give identical results) [default: grid].
     #[arg(long, value_enum)]
     pub broad_phase: Option<BroadPhase>,
-    /// Constraint schedule.
+    /// Constraint schedule [default: sweep].
     #[arg(long, value_enum)]
     pub constraint_schedule: Option<ConstraintSchedule>,
 }
@@ -131,14 +134,42 @@ impl SettingsArgs {
         if let Some(v) = self.constraint_schedule {
             s.constraint_schedule = v;
         }
+        for note in self.ineffective(&s) {
+            eprintln!("warning: {note}");
+        }
         Ok(s)
+    }
+
+    /// Settings given that will not do what they say with the rest: a value accepted without a
+    /// word would let a user believe it acted.
+    fn ineffective(&self, s: &Settings) -> Vec<String> {
+        let mut notes = Vec::new();
+        if s.time_step == 0.0 {
+            notes.push("--dt 0: time does not advance, nothing will move".to_string());
+        }
+        if s.solver == Solver::Coursework {
+            let soft_only = [
+                (self.friction.is_some(), "--friction"),
+                (self.no_sleep, "--no-sleep"),
+            ];
+            for (given, flag) in soft_only {
+                if given {
+                    notes.push(format!(
+                        "{flag} acts on the soft-step solver only (the coursework's has no friction and no sleeping); add --accurate or --solver soft-step"
+                    ));
+                }
+            }
+        }
+        notes
     }
 }
 
 /// A scene and its constraints.
 #[derive(Debug, Clone, Args)]
 pub struct SceneArgs {
-    /// Scene file, or a built-in scene: mixed, tower, two-chain, cube, stress, two-cylinders.
+    /// Scene file, or a built-in scene (mixed, tower, two-chain, cube, stress, two-cylinders),
+    /// or a generated one (sparse-N, scatter-N, pile-N, chain-N, rope-N, stack-N); `tumble
+    /// scenes` says what each is.
     #[arg(default_value = tumble::DEFAULT_SCENE)]
     pub scene: String,
     /// Constraint file, or `none`. Default: X-constraints.txt beside X-scene.txt, if present.
@@ -159,6 +190,17 @@ impl SceneArgs {
     pub fn load(&self, settings: Settings) -> anyhow::Result<tumble::World> {
         let choice = constraints_choice(self.constraints.as_deref());
         let world = tumble::scene::load(&self.scene, &choice, settings)?;
+        let scene_file = std::path::Path::new(&self.scene);
+        if matches!(choice, ConstraintsChoice::Auto)
+            && scene_file.is_file()
+            && let Some(found) =
+                tumble::scene::default_constraints_path(scene_file).filter(|p| p.is_file())
+        {
+            eprintln!(
+                "constraints: {} (beside the scene; --constraints none leaves them out)",
+                found.display()
+            );
+        }
         for w in &world.warnings {
             eprintln!("warning: {w}");
         }

@@ -16,7 +16,7 @@ pub struct RunArgs {
     /// Number of steps.
     #[arg(long, default_value_t = 500)]
     pub steps: u64,
-    /// Write time, centre of mass and orientation of every body after every step (CSV).
+    /// Write time, centre of mass and orientation of every body at the start (step 0) and after every step (CSV).
     #[arg(long, value_name = "FILE.csv")]
     pub trajectory: Option<PathBuf>,
     /// Print one JSON object instead of the text summary.
@@ -158,7 +158,7 @@ fn steps_until_interrupted(
 
 impl RunSummary {
     fn start(scene: &str, steps: u64, world: &tumble::World, settings: tumble::Settings) -> Self {
-        let energy_start = world.total_energy();
+        let energy_start = world.total_energy() + 0.0;
         RunSummary {
             scene: scene.to_string(),
             steps,
@@ -218,17 +218,31 @@ impl RunSummary {
         } else {
             f64::INFINITY
         };
-        self.energy_end = world.total_energy();
+        // (+ 0.0: an empty scene's energy is 0, not -0.)
+        self.energy_end = world.total_energy() + 0.0;
         self.energy_frozen = world.frozen_energy();
         self.finite = world.all_finite() && self.quarantined.is_empty();
         self.stage_ms = self.stage_ms.scaled(1000.0 / completed.max(1) as f64);
     }
 }
 
+/// "1 body", "2 bodies".
+fn counted(n: usize, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
 fn print_summary(s: &RunSummary) {
+    // Each constraint record is a lower and an upper inequality (the coursework's M counts both).
+    let records = s.constraints / 2;
+    let inequalities = match s.constraints {
+        0 => String::new(),
+        n => format!(" ({n} inequalities)"),
+    };
     println!(
-        "scene {}: {} bodies, {} constraints",
-        s.scene, s.bodies, s.constraints
+        "scene {}: {}, {}{inequalities}",
+        s.scene,
+        counted(s.bodies, "body", "bodies"),
+        counted(records, "distance constraint", "distance constraints"),
     );
     println!(
         "{} steps ({:.2} s simulated) in {:.3} s wall: {:.0} steps/s",
