@@ -738,4 +738,3 @@ fn cli_warns_of_settings_the_solver_ignores() {
     assert!(!run(&["--friction", "0.3", "--accurate"]).contains("warning"));
     assert!(run(&["--dt", "0"]).contains("--dt 0: time does not advance"));
 }
-

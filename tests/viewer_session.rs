@@ -405,5 +405,18 @@ fn a_dropped_mesh_is_a_body_above_the_ground() {
         .load(Settings::default())
         .unwrap_err();
     assert_eq!(error.file, bad);
+    // Two tetrahedra apart: not convex, loaded with the warning a scene of it gets.
+    let pair = dir.join("pair.off");
+    let faces = "3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n3 4 6 5\n3 4 5 7\n3 4 7 6\n3 5 6 7\n";
+    let corners = "0 0 0\n1 0 0\n0 1 0\n0 0 1\n5 5 5\n6 5 5\n5 6 5\n5 5 6\n";
+    std::fs::write(&pair, format!("OFF\n8 8 0\n{corners}{faces}")).unwrap();
+    let world = SceneSource::dropped(&pair)
+        .load(Settings::default())
+        .unwrap();
+    assert!(
+        world.warnings.len() == 1 && world.warnings[0].contains("not convex"),
+        "{:?}",
+        world.warnings
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -108,29 +108,50 @@ fn convexity_warning(shape: &Shape, mesh_path: &Path) -> Option<String> {
     })
 }
 
+/// The reader of a mesh file by its extension: `.mesh` (Medit) or `.off`, in any case.
+pub fn mesh_reader(path: &Path) -> Option<fn(&Path, &str) -> Result<TetMesh, LoadError>> {
+    let extension = path.extension()?.to_str()?.to_ascii_lowercase();
+    match extension.as_str() {
+        "mesh" => Some(parse_medit),
+        "off" => Some(parse_off),
+        _ => None,
+    }
+}
+
+/// A mesh file on disk as a shape, and a warning when it is not convex.
+pub fn load_mesh_file(path: &Path) -> Result<(Shape, Option<String>), LoadError> {
+    let parse =
+        mesh_reader(path).ok_or_else(|| LoadError::new(path, None, "not a .mesh or .off file"))?;
+    let shape = read_shape(&Disk, path, parse)?;
+    let warning = convexity_warning(&shape, path);
+    Ok((shape, warning))
+}
+
+fn read_shape(
+    source: &dyn FileSource,
+    mesh_path: &Path,
+    parse: fn(&Path, &str) -> Result<TetMesh, LoadError>,
+) -> Result<Shape, LoadError> {
+    let text = source.read(mesh_path)?;
+    let mesh = parse(mesh_path, &text)?;
+    Shape::from_tet_mesh(&mesh).map_err(|e| LoadError::new(mesh_path, None, e.to_string()))
+}
+
 fn load_shape(
     source: &dyn FileSource,
     mesh_path: &Path,
     scene_path: &Path,
     record: &SceneRecord,
 ) -> Result<Shape, LoadError> {
-    let extension = mesh_path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(|e| e.to_ascii_lowercase());
-    let parse: fn(&Path, &str) -> Result<TetMesh, LoadError> = match extension.as_deref() {
-        Some("mesh") => parse_medit,
-        Some("off") => parse_off,
-        _ => {
-            return Err(LoadError::new(
-                scene_path,
-                Some(record.line),
-                format!(
-                    "mesh '{}' is neither a .mesh nor an .off file",
-                    record.mesh_path
-                ),
-            ));
-        }
+    let Some(parse) = mesh_reader(mesh_path) else {
+        return Err(LoadError::new(
+            scene_path,
+            Some(record.line),
+            format!(
+                "mesh '{}' is neither a .mesh nor an .off file",
+                record.mesh_path
+            ),
+        ));
     };
     if !source.exists(mesh_path) {
         return Err(LoadError::new(
@@ -143,9 +164,7 @@ fn load_shape(
             ),
         ));
     }
-    let text = source.read(mesh_path)?;
-    let mesh = parse(mesh_path, &text)?;
-    Shape::from_tet_mesh(&mesh).map_err(|e| LoadError::new(mesh_path, None, e.to_string()))
+    read_shape(source, mesh_path, parse)
 }
 
 /// Each record becomes a lower and an upper inequality on the distance between the two vertices,

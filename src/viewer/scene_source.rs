@@ -2,9 +2,9 @@
 //! by name or path with its constraints, or one mesh file dropped on the window, which becomes a
 //! one-body scene above the ground.
 
-use crate::io::{LoadError, parse_medit, parse_off, parse_scene};
+use crate::io::{LoadError, parse_scene};
 use crate::scene::default_constraints_path;
-use crate::{ConstraintsChoice, RigidBody, Settings, Shape, World};
+use crate::{ConstraintsChoice, RigidBody, Settings, World};
 use glam::{DQuat, DVec3};
 use std::path::{Path, PathBuf};
 
@@ -33,7 +33,7 @@ impl SceneSource {
 
     /// What a file dropped on the window means: a mesh by its extension, else a scene file.
     pub fn dropped(path: &Path) -> SceneSource {
-        if mesh_parser(path).is_some() {
+        if crate::scene::mesh_reader(path).is_some() {
             SceneSource::Mesh(path.to_path_buf())
         } else {
             SceneSource::named(&path.to_string_lossy())
@@ -86,26 +86,9 @@ impl SceneSource {
     }
 }
 
-type MeshParser = fn(&Path, &str) -> Result<crate::io::TetMesh, LoadError>;
-
-fn mesh_parser(path: &Path) -> Option<MeshParser> {
-    let extension = path.extension()?.to_str()?.to_ascii_lowercase();
-    match extension.as_str() {
-        "mesh" => Some(parse_medit),
-        "off" => Some(parse_off),
-        _ => None,
-    }
-}
-
 /// One body of the mesh at `path`, its lowest point half its height above the ground.
 fn mesh_scene(path: &Path, settings: Settings) -> Result<World, LoadError> {
-    let parse =
-        mesh_parser(path).ok_or_else(|| LoadError::new(path, None, "not a .mesh or .off file"))?;
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| LoadError::new(path, None, format!("cannot read: {e}")))?;
-    let mesh = parse(path, &text)?;
-    let shape =
-        Shape::from_tet_mesh(&mesh).map_err(|e| LoadError::new(path, None, e.to_string()))?;
+    let (shape, warning) = crate::scene::load_mesh_file(path)?;
     let (low, high) = shape
         .rest_vertices
         .iter()
@@ -118,11 +101,7 @@ fn mesh_scene(path: &Path, settings: Settings) -> Result<World, LoadError> {
         || path.display().to_string(),
         |n| n.to_string_lossy().into(),
     );
-    Ok(World::new(
-        vec![shape],
-        vec![name],
-        vec![body],
-        Vec::new(),
-        settings,
-    ))
+    let mut world = World::new(vec![shape], vec![name], vec![body], Vec::new(), settings);
+    world.warnings.extend(warning);
+    Ok(world)
 }
