@@ -420,3 +420,58 @@ fn a_dropped_mesh_is_a_body_above_the_ground() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Every text the panel lays out in one headless frame.
+fn panel_texts(session: &mut Session) -> Vec<String> {
+    use tumble::viewer::panel::{self, FrameInfo, PanelState};
+    let ctx = egui::Context::default();
+    let input = egui::RawInput {
+        screen_rect: Some(egui::Rect::from_min_size(
+            egui::Pos2::ZERO,
+            egui::vec2(1280.0, 2000.0),
+        )),
+        ..Default::default()
+    };
+    let info = FrameInfo {
+        frame_interval: 1.0 / 60.0,
+        frame_work: 0.005,
+        adapter: "none",
+        msaa: 1,
+        draw_calls: 0,
+        recording: None,
+    };
+    let frame = panel::run(&ctx, input, session, &mut PanelState::default(), &info);
+    frame
+        .output
+        .shapes
+        .iter()
+        .filter_map(|clipped| match &clipped.shape {
+            egui::Shape::Text(text) => Some(text.galley.job.text.clone()),
+            _ => None,
+        })
+        .collect()
+}
+
+/// The scene's load warnings show in the panel (a window has no terminal for them), and the
+/// constraints are counted as the file's records.
+#[test]
+fn the_panel_shows_the_scenes_warnings() {
+    let mut s = session("two-chain", Settings::default());
+    let texts = panel_texts(&mut s);
+    assert!(
+        !texts.iter().any(|t| t.starts_with("warning:")),
+        "{texts:?}"
+    );
+    assert!(
+        texts.iter().any(|t| t.contains("16 distance constraints")),
+        "{texts:?}"
+    );
+    let mut world = load("two-chain", Settings::default());
+    world.warnings = vec!["m.off: the mesh is not convex".into()];
+    let mut s = Session::new(world, SceneSource::named("two-chain"));
+    let texts = panel_texts(&mut s);
+    assert!(
+        texts.contains(&"warning: m.off: the mesh is not convex".to_string()),
+        "{texts:?}"
+    );
+}

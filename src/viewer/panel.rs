@@ -431,13 +431,28 @@ fn scene_picker(
     }
     watch_ui(ui, session);
     let world = session.world();
+    warnings_ui(ui, &world.warnings);
     ui.label(format!(
-        "{} bodies ({} fixed), {} shapes, {} constraints",
+        "{} bodies ({} fixed), {} shapes, {} distance constraints",
         world.bodies.len(),
         world.bodies.iter().filter(|b| b.fixed).count(),
         world.shapes.len(),
-        world.constraints.len()
+        // Each record is a lower and an upper inequality.
+        world.constraints.len() / 2
     ));
+}
+
+/// The scene's load warnings (a file's records out of step, a mesh that is not convex, a
+/// constraint between fixed bodies), the first few in full: a window shows no terminal.
+fn warnings_ui(ui: &mut egui::Ui, warnings: &[String]) {
+    const SHOWN: usize = 3;
+    let amber = Color32::from_rgb(240, 190, 80);
+    for w in warnings.iter().take(SHOWN) {
+        ui.colored_label(amber, format!("warning: {w}"));
+    }
+    if warnings.len() > SHOWN {
+        ui.colored_label(amber, format!("... and {} more", warnings.len() - SHOWN));
+    }
 }
 
 /// The reload toggle and the files it watches.
