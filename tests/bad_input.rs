@@ -738,3 +738,14 @@ fn cli_warns_of_settings_the_solver_ignores() {
     assert!(!run(&["--friction", "0.3", "--accurate"]).contains("warning"));
     assert!(run(&["--dt", "0"]).contains("--dt 0: time does not advance"));
 }
+
+/// A negative count is named as one (clap's own message for it was "unexpected argument '-1'").
+#[cfg(feature = "cli")]
+#[test]
+fn cli_names_a_negative_count() {
+    let os = std::ffi::OsStr::new;
+    cli_fails_saying(
+        &[os("run"), os("cube"), os("--steps"), os("-1")],
+        "expected a whole number, 0 or more, got '-1'",
+    );
+}

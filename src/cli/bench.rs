@@ -34,7 +34,7 @@ pub struct ScaleArgs {
     pub huge: bool,
     /// Measured steps per run (after the warm-up); pile-N is watched on for three times as
     /// many, for its pile to come to rest (its median still covers the first ones).
-    #[arg(long, default_value_t = 500)]
+    #[arg(long, default_value_t = 500, allow_negative_numbers = true, value_parser = super::whole_number::<usize>)]
     pub steps: usize,
     /// Warm-up steps per run.
     #[arg(long, default_value_t = 20)]
@@ -81,7 +81,7 @@ pub struct AccuracyArgs {
 #[derive(Debug, Args)]
 pub struct SoakArgs {
     /// Steps per scene.
-    #[arg(long, default_value_t = 100_000)]
+    #[arg(long, default_value_t = 100_000, allow_negative_numbers = true, value_parser = super::whole_number::<u64>)]
     pub steps: u64,
     /// Use the `--accurate` preset instead of the coursework defaults.
     #[arg(long)]

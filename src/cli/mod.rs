@@ -177,6 +177,12 @@ pub struct SceneArgs {
     pub constraints: Option<String>,
 }
 
+/// A count given on the command line: clap's own message for "-1" is "invalid digit".
+pub fn whole_number<T: std::str::FromStr>(text: &str) -> Result<T, String> {
+    text.parse()
+        .map_err(|_| format!("expected a whole number, 0 or more, got '{text}'"))
+}
+
 /// `--constraints FILE|none`.
 fn constraints_choice(arg: Option<&str>) -> ConstraintsChoice {
     match arg {

@@ -65,7 +65,7 @@ pub struct ViewArgs {
     #[arg(long, value_name = "WxH", default_value = "1280x800", value_parser = parse_size)]
     pub size: (u32, u32),
     /// Quit after this many frames (smoke tests, frame-time measurements).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", allow_negative_numbers = true, value_parser = super::whole_number::<u64>)]
     pub frames: Option<u64>,
     /// Write a PNG of the whole window after the last of --frames.
     #[arg(long, value_name = "FILE.png", requires = "frames")]
