@@ -433,6 +433,18 @@ fn records_out_of_step_name_their_line() {
     // One record a line, as every coursework file: no warning.
     let aligned = load(&dir, scene, Some("1\n0 0 1 0 0.9 1.1\n")).unwrap();
     assert!(aligned.warnings.is_empty(), "{:?}", aligned.warnings);
+    // Bounds that leave out the starting distance (1, as they are fractions of it) load, with
+    // a warning that the bodies will be pulled into range.
+    for bounds in ["1.2 1.5", "0.2 0.5"] {
+        let pulled = load(&dir, scene, Some(&format!("1\n0 0 1 0 {bounds}\n"))).unwrap();
+        assert!(
+            pulled.warnings.len() == 1
+                && pulled.warnings[0].contains("s-constraints.txt:2: the bounds")
+                && pulled.warnings[0].contains("leave out the distance the scene starts at"),
+            "{:?}",
+            pulled.warnings
+        );
+    }
     // A Medit vertex with a field missing: the error where the words ran out names its line.
     dir.write("t.mesh", &TET.replace("0 1 0 0\n", "0 1 0\n"));
     let err = load(&dir, "1\nt.mesh 1 0 0 0 0 1 0 0 0\n", None).unwrap_err();

@@ -75,6 +75,7 @@ fn every_builtin_scene_loads_and_runs() {
         let mut world =
             tumble::scene::load(name, &ConstraintsChoice::Auto, Settings::default()).unwrap();
         assert!(!world.bodies.is_empty());
+        assert!(world.warnings.is_empty(), "{name}: {:?}", world.warnings);
         run_finite(&mut world, 500, name);
     }
     let chain =

@@ -221,6 +221,17 @@ fn build_constraints(
             ));
             continue;
         }
+        if r.lower > 1.0 || r.upper < 1.0 {
+            warnings.push(format!(
+                "{}:{}: the bounds {} and {} leave out the distance the scene starts at (1 in these units, fractions of it): the first steps pull bodies {} and {} into range",
+                file.display(),
+                r.line,
+                r.lower,
+                r.upper,
+                r.body1,
+                r.body2
+            ));
+        }
         out.extend(DistanceConstraint::lower_and_upper(
             bodies,
             shapes,
