@@ -284,6 +284,16 @@ fn mesh_file_errors() {
         None,
         "too large",
     );
+    // Coordinates so small that the volume underflows: too small, not degenerate.
+    expect(
+        mesh(&TET.replace(
+            "1 0 0 0\n0 1 0 0\n0 0 1 0",
+            "1e-200 0 0 0\n0 1e-200 0 0\n0 0 1e-200 0",
+        )),
+        "m.mesh",
+        None,
+        "too small",
+    );
     // A tetrahedron wound the other way is the same solid (as in the coursework's skeleton,
     // which takes each tetrahedron's absolute volume).
     assert!(mesh(&TET.replace("1 2 3 4 0", "2 1 3 4 0")).is_ok());

@@ -25,6 +25,8 @@ pub enum ShapeError {
     NonFinite,
     #[error("the mesh is too large: its volume overflows double precision")]
     TooLarge,
+    #[error("the mesh is too small: its volume underflows double precision")]
+    TooSmall,
 }
 
 /// Volume, centre of mass and inertia tensor (about the centre of mass, unit density) of a
@@ -131,11 +133,15 @@ impl Shape {
             .vertices
             .iter()
             .map(|v| v.abs().max_element())
-            .fold(0.0, f64::max)
-            .max(1e-300);
+            .fold(0.0, f64::max);
         // The coordinates are finite, so a volume that is not finite overflowed on the way.
         if !props.volume.is_finite() {
             return Err(ShapeError::TooLarge);
+        }
+        // The degeneracy test below compares with the cube of the size, which underflows to
+        // zero for coordinates under about 1e-103 (and every volume with it).
+        if scale > 0.0 && scale.powi(3) < 1e12 * f64::MIN_POSITIVE {
+            return Err(ShapeError::TooSmall);
         }
         if props.volume <= 1e-12 * scale.powi(3) {
             return Err(ShapeError::Degenerate);
