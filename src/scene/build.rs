@@ -108,8 +108,11 @@ fn convexity_warning(shape: &Shape, mesh_path: &Path) -> Option<String> {
     })
 }
 
+/// A reader of one mesh format: the file's path (for errors) and its text.
+pub type MeshReader = fn(&Path, &str) -> Result<TetMesh, LoadError>;
+
 /// The reader of a mesh file by its extension: `.mesh` (Medit) or `.off`, in any case.
-pub fn mesh_reader(path: &Path) -> Option<fn(&Path, &str) -> Result<TetMesh, LoadError>> {
+pub fn mesh_reader(path: &Path) -> Option<MeshReader> {
     let extension = path.extension()?.to_str()?.to_ascii_lowercase();
     match extension.as_str() {
         "mesh" => Some(parse_medit),
@@ -130,7 +133,7 @@ pub fn load_mesh_file(path: &Path) -> Result<(Shape, Option<String>), LoadError>
 fn read_shape(
     source: &dyn FileSource,
     mesh_path: &Path,
-    parse: fn(&Path, &str) -> Result<TetMesh, LoadError>,
+    parse: MeshReader,
 ) -> Result<Shape, LoadError> {
     let text = source.read(mesh_path)?;
     let mesh = parse(mesh_path, &text)?;
