@@ -16,7 +16,8 @@ pub struct RunArgs {
     /// Number of steps.
     #[arg(long, default_value_t = 500, allow_negative_numbers = true, value_parser = super::whole_number::<u64>)]
     pub steps: u64,
-    /// Write time, centre of mass and orientation of every body at the start (step 0) and after every step (CSV).
+    /// Write time, centre of mass and orientation of every body at the start (step 0) and after
+    /// every step (CSV).
     #[arg(long, value_name = "FILE.csv")]
     pub trajectory: Option<PathBuf>,
     /// Print one JSON object instead of the text summary.

@@ -47,8 +47,8 @@ pub struct Tokens<'a> {
     next: usize,
     file: &'a Path,
     last_line: usize,
-    /// The first line of the current run of records that does not hold one whole record, said
-    /// in every error from the line before it on: how a record read out of step shows.
+    /// The first line of the current run of records that does not hold one whole record, named
+    /// in every error on it or after it: how a record read out of step shows.
     layout_break: Option<LayoutBreak>,
 }
 

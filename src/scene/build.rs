@@ -226,7 +226,7 @@ fn build_constraints(
         }
         if r.lower > 1.0 || r.upper < 1.0 {
             warnings.push(format!(
-                "{}:{}: the bounds {} and {} leave out the distance the scene starts at (1 in these units, fractions of it): the first steps pull bodies {} and {} into range",
+                "{}:{}: the bounds {} and {} leave out the distance the scene starts at (bounds are fractions of it, so 1): the first steps pull bodies {} and {} into range",
                 file.display(),
                 r.line,
                 r.lower,
