@@ -132,3 +132,27 @@ fn shipped_assets_are_what_tumble_generates() {
         );
     }
 }
+
+/// Every coursework mesh, `.mesh` and `.off`, loads as a shape with no warning: the OFF
+/// surfaces are closed and wound one way, and every mesh is convex enough.
+#[test]
+fn every_coursework_mesh_loads_without_a_warning() {
+    let Some(dir) = coursework_dir() else { return };
+    let mut meshes: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| tumble::scene::mesh_reader(p).is_some())
+        .collect();
+    meshes.sort();
+    assert!(
+        meshes.len() >= 17,
+        "expected the coursework's meshes in {}",
+        dir.display()
+    );
+    for path in &meshes {
+        let (shape, warning) =
+            tumble::scene::load_mesh_file(path).unwrap_or_else(|e| panic!("{e}"));
+        assert!(warning.is_none(), "{warning:?}");
+        assert!(shape.convexity() > 0.9, "{}", path.display());
+    }
+}
