@@ -46,53 +46,29 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
                 }
             }
             "vertices" => {
-                let count =
-                    tokens.count_records("the vertex count", &VERTEX_RECORD, MAX_MESH_ELEMENTS)?;
-                mesh.vertices.reserve(count);
-                for _ in 0..count {
-                    let (x, _) = tokens.real("a vertex x coordinate")?;
-                    let (y, _) = tokens.real("a vertex y coordinate")?;
-                    let (z, _) = tokens.real("a vertex z coordinate")?;
-                    tokens.real("the vertex reference number")?;
-                    mesh.vertices.push(DVec3::new(x, y, z));
-                }
+                read_vertices(&mut tokens, &mut mesh.vertices)?;
                 seen_vertices = true;
             }
             "triangles" => {
-                let count = tokens.count_records(
-                    "the triangle count",
+                let first = mesh.triangles.len();
+                read_elements(
+                    &mut tokens,
                     &TRIANGLE_RECORD,
-                    MAX_MESH_ELEMENTS,
+                    &mut mesh.triangles,
+                    &mut tri_lines,
                 )?;
-                mesh.triangles.reserve(count);
-                for _ in 0..count {
-                    let line = tokens.line();
-                    let a = one_based(&mut tokens, "a triangle vertex index")?;
-                    let b = one_based(&mut tokens, "a triangle vertex index")?;
-                    let c = one_based(&mut tokens, "a triangle vertex index")?;
-                    tokens.real("the triangle reference number")?;
-                    // Flipped: stored inward, wanted outward.
-                    mesh.triangles.push([a, c, b]);
-                    tri_lines.push(line);
-                }
+                // Flipped: stored inward, wanted outward.
+                mesh.triangles[first..]
+                    .iter_mut()
+                    .for_each(|t| t.swap(1, 2));
             }
             "tetrahedra" => {
-                let count = tokens.count_records(
-                    "the tetrahedron count",
+                read_elements(
+                    &mut tokens,
                     &TETRAHEDRON_RECORD,
-                    MAX_MESH_ELEMENTS,
+                    &mut mesh.tetrahedra,
+                    &mut tet_lines,
                 )?;
-                mesh.tetrahedra.reserve(count);
-                for _ in 0..count {
-                    let line = tokens.line();
-                    let mut tet = [0u32; 4];
-                    for slot in &mut tet {
-                        *slot = one_based(&mut tokens, "a tetrahedron vertex index")?;
-                    }
-                    tokens.real("the tetrahedron reference number")?;
-                    mesh.tetrahedra.push(tet);
-                    tet_lines.push(line);
-                }
             }
             "edges" => skip_records(&mut tokens, "the edge count", 3)?,
             "corners" | "ridges" | "requiredvertices" | "requirededges" | "requiredtriangles" => {
@@ -127,6 +103,48 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
         check_indices(&tokens, tri, n, line, "triangle")?;
     }
     Ok(mesh)
+}
+
+/// A `Vertices` section after its keyword: the count, then `x y z reference` records.
+fn read_vertices(tokens: &mut Tokens, vertices: &mut Vec<DVec3>) -> Result<(), LoadError> {
+    let count = tokens.count_records("the vertex count", &VERTEX_RECORD, MAX_MESH_ELEMENTS)?;
+    vertices.reserve(count);
+    for _ in 0..count {
+        let (x, _) = tokens.real("a vertex x coordinate")?;
+        let (y, _) = tokens.real("a vertex y coordinate")?;
+        let (z, _) = tokens.real("a vertex z coordinate")?;
+        tokens.real("the vertex reference number")?;
+        vertices.push(DVec3::new(x, y, z));
+    }
+    Ok(())
+}
+
+/// A `Triangles` or `Tetrahedra` section after its keyword: the count, then records of `N`
+/// 1-based vertex indices and a reference number, kept 0-based with the line of each (their
+/// indices are checked once every vertex is read).
+fn read_elements<const N: usize>(
+    tokens: &mut Tokens,
+    layout: &'static RecordLayout,
+    elements: &mut Vec<[u32; N]>,
+    lines: &mut Vec<usize>,
+) -> Result<(), LoadError> {
+    let what = if N == 3 { "triangle" } else { "tetrahedron" };
+    let count = tokens.count_records(&format!("the {what} count"), layout, MAX_MESH_ELEMENTS)?;
+    elements.reserve(count);
+    let (index_what, reference_what) = (
+        format!("a {what} vertex index"),
+        format!("the {what} reference number"),
+    );
+    for _ in 0..count {
+        lines.push(tokens.line());
+        let mut element = [0u32; N];
+        for slot in &mut element {
+            *slot = one_based(tokens, &index_what)?;
+        }
+        tokens.real(&reference_what)?;
+        elements.push(element);
+    }
+    Ok(())
 }
 
 fn one_based(tokens: &mut Tokens, what: &str) -> Result<u32, LoadError> {
