@@ -20,20 +20,35 @@ fn run_finite(world: &mut World, steps: usize, what: &str) {
     assert!(world.total_energy().is_finite(), "{what}: energy");
 }
 
-#[test]
-fn every_coursework_scene_loads_and_runs_500_steps_with_either_solver() {
-    let Some(dir) = coursework_dir() else { return };
-    let mut scenes: Vec<_> = std::fs::read_dir(&dir)
+/// The coursework's files that `keep` picks, sorted; at least `least` of them (None, with a
+/// printed reason, when the data is not beside the checkout).
+fn coursework_files(
+    least: usize,
+    what: &str,
+    keep: impl Fn(&Path) -> bool,
+) -> Option<Vec<std::path::PathBuf>> {
+    let dir = coursework_dir()?;
+    let mut files: Vec<_> = std::fs::read_dir(&dir)
         .unwrap()
         .map(|e| e.unwrap().path())
-        .filter(|p| p.to_string_lossy().ends_with("-scene.txt"))
+        .filter(|p| keep(p))
         .collect();
-    scenes.sort();
+    files.sort();
     assert!(
-        scenes.len() >= 10,
-        "expected the coursework's scenes in {}",
+        files.len() >= least,
+        "expected the coursework's {what} in {}",
         dir.display()
     );
+    Some(files)
+}
+
+#[test]
+fn every_coursework_scene_loads_and_runs_500_steps_with_either_solver() {
+    let Some(scenes) = coursework_files(10, "scenes", |p| {
+        p.to_string_lossy().ends_with("-scene.txt")
+    }) else {
+        return;
+    };
     for (scene, settings) in scenes
         .iter()
         .flat_map(|s| [Settings::default(), Settings::accurate()].map(|settings| (s, settings)))
@@ -137,18 +152,10 @@ fn shipped_assets_are_what_tumble_generates() {
 /// surfaces are closed and wound one way, and every mesh is convex enough.
 #[test]
 fn every_coursework_mesh_loads_without_a_warning() {
-    let Some(dir) = coursework_dir() else { return };
-    let mut meshes: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| tumble::scene::mesh_reader(p).is_some())
-        .collect();
-    meshes.sort();
-    assert!(
-        meshes.len() >= 17,
-        "expected the coursework's meshes in {}",
-        dir.display()
-    );
+    let Some(meshes) = coursework_files(17, "meshes", |p| tumble::scene::mesh_reader(p).is_some())
+    else {
+        return;
+    };
     for path in &meshes {
         let (shape, warning) =
             tumble::scene::load_mesh_file(path).unwrap_or_else(|e| panic!("{e}"));
