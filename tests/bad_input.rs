@@ -759,6 +759,8 @@ fn cli_warns_of_settings_the_solver_ignores() {
     );
     assert!(!run(&["--friction", "0.3", "--accurate"]).contains("warning"));
     assert!(run(&["--dt", "0"]).contains("--dt 0: time does not advance"));
+    assert!(run(&["--dt", "1e9"]).contains("--dt 1000000000: steps over 0.1 s"));
+    assert!(!run(&["--dt", "0.1"]).contains("warning"));
 }
 
 /// A negative count is named as one (clap's own message for it was "unexpected argument '-1'").

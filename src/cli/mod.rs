@@ -67,6 +67,11 @@ pub struct SettingsArgs {
     pub constraint_schedule: Option<ConstraintSchedule>,
 }
 
+/// Longest time step taken without a warning. The mixed scene's deepest penetration after 4 s
+/// with the coursework's solver: 0.59 units at dt 0.02, 2.7 at 0.1, 4.8 at 0.2, 28 at 0.5; at
+/// 1e9 s the soft step's bodies blow up and are frozen.
+const LONGEST_SENSIBLE_STEP: f64 = 0.1;
+
 impl SettingsArgs {
     pub fn settings(&self) -> anyhow::Result<Settings> {
         let mut s = if self.accurate {
@@ -146,6 +151,12 @@ impl SettingsArgs {
         let mut notes = Vec::new();
         if s.time_step == 0.0 {
             notes.push("--dt 0: time does not advance, nothing will move".to_string());
+        }
+        if s.time_step > LONGEST_SENSIBLE_STEP {
+            notes.push(format!(
+                "--dt {}: steps over {LONGEST_SENSIBLE_STEP} s let bodies sink deep into each other (the default is 0.02)",
+                s.time_step
+            ));
         }
         if s.solver == Solver::Coursework {
             let soft_only = [
