@@ -605,7 +605,7 @@ impl SoftStep {
                 (bodies, &mut w.bodies),
                 &mut self.joint_sides,
                 inv_h,
-                biased,
+                biased.then_some(MAX_PUSH_SPEED),
             );
         }
         joint_solver::solve(
