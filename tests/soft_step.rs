@@ -638,7 +638,7 @@ fn a_landing_wakes_its_neighbours_not_the_whole_row() {
 #[test]
 fn a_pendulum_never_sleeps() {
     for dt in [0.04, 0.01] {
-        let mut world = scenarios::pendulum_world(accurate(dt));
+        let mut world = scenarios::pendulum_world(accurate(dt), scenarios::PENDULUM);
         assert!(world.settings.sleep);
         let mut apexes = 0;
         let mut previous_vx = 0.0;
@@ -651,6 +651,29 @@ fn a_pendulum_never_sleeps() {
         }
         // Period 2 pi sqrt(20 / 9.8) = 9 s: six apexes in 30 s.
         assert!(apexes >= 6, "dt {dt}: {apexes} apexes");
+    }
+}
+
+/// A long pendulum swinging by 2 units (0.02 rad on a rod of 100): its speed stays under the
+/// sleep speed for about a second round each apex, longer than the time to sleep, but it is
+/// accelerating there (at g sin 0.02 = 0.2 units/s^2), not resting, and must not sleep: it
+/// fell asleep 2 units off centre and hung there for ever (found by review, measured).
+#[test]
+fn a_slow_pendulum_never_sleeps_at_its_apex() {
+    for dt in [0.04, 0.02] {
+        let swing = (DVec3::new(0.0, 110.0, 0.0), 100.0, 0.02);
+        let mut world = scenarios::pendulum_world(accurate(dt), swing);
+        let mut apexes = 0;
+        let mut previous_vx = 0.0;
+        // Period 2 pi sqrt(100 / 9.8) = 20 s: three apexes after the start in 40 s.
+        for _ in 0..(40.0 / dt) as usize {
+            let stats = world.step();
+            assert_eq!(stats.asleep, 0, "dt {dt}: asleep at t = {}", world.time);
+            let vx = world.bodies[1].linear_velocity.x;
+            apexes += (vx * previous_vx < 0.0) as usize;
+            previous_vx = vx;
+        }
+        assert!(apexes >= 3, "dt {dt}: {apexes} apexes");
     }
 }
 

@@ -30,6 +30,8 @@ pub struct RigidBody {
     pub moving: bool,
     /// Seconds the body and its island have rested (soft-step solver).
     pub sleep_time: f64,
+    /// Velocity when its rest began (soft-step solver; see [`crate::sim::soft_step::sleep`]).
+    pub rest_velocity: DVec3,
     pub inverse_mass: f64,
     /// Index of the body's shape in [`crate::World::shapes`].
     pub shape: usize,
@@ -79,6 +81,7 @@ impl RigidBody {
             asleep: false,
             moving: true,
             sleep_time: 0.0,
+            rest_velocity: DVec3::ZERO,
         }
     }
 

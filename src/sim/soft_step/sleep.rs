@@ -4,7 +4,10 @@
 //! something wakes it: contact with a moving body, a constraint to one, a grab, or a change of
 //! settings. A body's speed counts its spin at its rim and is weighed by
 //! [`POSITION_SLEEP_FACTOR`]. A time window, not an instantaneous speed: a pendulum at its apex
-//! is still for an instant only. The island's energy, not each body's speed as in Box2D: in a
+//! is still for an instant only; and a body held by constraints alone rests only while its
+//! velocity stays within the sleep speed of what it was when its rest began (a pendulum of 100
+//! units swinging by 2 is slower than the sleep speed for a second round each apex, and slept
+//! there, off centre, for ever). The island's energy, not each body's speed as in Box2D: in a
 //! pile of ten thousand one body rocking at 0.1 units/s in a contact's limit cycle kept every
 //! other awake (pile-10000 at dt 0.02 and restitution 0.15, 0.2 and 0.25 was asleep by 20 s,
 //! by 20 s and not within 30 s; on the island's energy at 13, 16 and 13 s).
@@ -44,6 +47,8 @@ pub struct Islands {
     /// Each island's mass and `sum m v^2` (by root).
     mass: Vec<f64>,
     energy: Vec<f64>,
+    /// Whether each body touches something (by body).
+    touched: Vec<bool>,
 }
 
 impl Islands {
@@ -55,6 +60,8 @@ impl Islands {
             sums.clear();
             sums.resize(n, 0.0);
         }
+        self.touched.clear();
+        self.touched.resize(n, false);
     }
 }
 
@@ -97,6 +104,13 @@ pub fn settle(
         Some((i, POSITION_SLEEP_FACTOR * moved / dt, b.mass))
     });
     islands.reset(bodies.len());
+    let touched = &mut islands.touched;
+    let touching = touching.inspect(|&(i, j)| {
+        if i != GROUND {
+            touched[i] = true;
+        }
+        touched[j] = true;
+    });
     for (i, j) in links(bodies, constraints, touching) {
         islands.sets.join(i, j);
     }
@@ -108,13 +122,23 @@ pub fn settle(
         islands.mass[root] += mass;
     }
     for (&(i, speed, _), &root) in awake.iter().zip(&roots) {
+        let calm = islands.energy[root] < islands.mass[root] * SLEEP_SPEED * SLEEP_SPEED;
         let b = &mut bodies[i];
         b.moving = speed >= SLEEP_SPEED;
-        let calm = islands.energy[root] < islands.mass[root] * SLEEP_SPEED * SLEEP_SPEED;
-        b.sleep_time = if calm && speed < SLEEP_SPEED_CAP {
-            b.sleep_time + dt
-        } else {
+        // A body held by constraints alone whose velocity has changed by the sleep speed since
+        // its rest began is accelerating, not resting: a slow pendulum near its apex, under
+        // the sleep speed for longer than the time to sleep. (Its velocities are the exact
+        // solve's; those of bodies in contact carry the pile's unconverged Gauss-Seidel, see
+        // above, and are not asked.)
+        let accelerating =
+            !islands.touched[i] && (b.linear_velocity - b.rest_velocity).length() > SLEEP_SPEED;
+        b.sleep_time = if !(calm && speed < SLEEP_SPEED_CAP) {
             0.0
+        } else if b.sleep_time == 0.0 || accelerating {
+            b.rest_velocity = b.linear_velocity;
+            dt
+        } else {
+            b.sleep_time + dt
         };
         islands.least[root] = islands.least[root].min(b.sleep_time);
     }
