@@ -838,3 +838,25 @@ fn each_solver_times_its_work_under_its_own_stages() {
             .any(|&solver| s.runs_under(solver))
     }));
 }
+
+/// A grab of a body index past the world's bodies pulls nothing, with either solver (the soft
+/// step indexed the bodies with it to wake its island, and panicked; found by review).
+#[test]
+fn a_grab_of_a_missing_body_pulls_nothing() {
+    for settings in [accurate(0.02), Settings::default()] {
+        let mut world = tumble::scene::load("mixed", &ConstraintsChoice::None, settings).unwrap();
+        let mut untouched = world.clone();
+        world.grab = Some(tumble::sim::grab::Grab {
+            body: world.bodies.len() + 3,
+            local_point: DVec3::ZERO,
+            target: DVec3::new(0.0, 100.0, 0.0),
+            hertz: 5.0,
+        });
+        for _ in 0..20 {
+            world.step();
+            untouched.step();
+        }
+        let poses = |w: &World| w.bodies.iter().map(|b| b.position).collect::<Vec<_>>();
+        assert_eq!(poses(&world), poses(&untouched));
+    }
+}

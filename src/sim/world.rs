@@ -131,12 +131,14 @@ impl World {
     fn soft_step(&mut self, ctx: &StepContext) -> StepStats {
         let mut stats = StepStats::default();
         let mut watch = Stopwatch::new();
+        // A grab of a body that is not there pulls nothing (as in the coursework's step).
+        let count = self.bodies.len();
         let scene = Scene {
             start: self.quarantine.step_start(&self.bodies),
             bodies: &mut self.bodies,
             shapes: &self.shapes,
             constraints: &self.constraints,
-            grab: self.grab.as_ref(),
+            grab: self.grab.as_ref().filter(|g| g.body < count),
         };
         self.soft_step
             .step(ctx, scene, &mut self.broad_phase, &mut watch, &mut stats);
