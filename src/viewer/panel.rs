@@ -5,6 +5,7 @@ use super::compare::{self, Layout};
 use super::labels::Label;
 use super::renderer::DrawOptions;
 use super::session::{Lane, Session};
+use crate::sim::settings::Solver;
 use crate::sim::{Choice, Settings};
 use egui::{Color32, RichText};
 use egui_plot::{Line, Plot, PlotPoints};
@@ -659,6 +660,36 @@ fn stepping_rows(ui: &mut egui::Ui, session: &Session, lane: &Lane) {
     );
 }
 
+/// The constraint work of the last step: the coursework's visits and budget, or whether the
+/// soft step's exact joint solves ran out of rounds.
+fn constraint_rows(ui: &mut egui::Ui, solver: Solver, last: &crate::StepStats) {
+    let alarm = |text: &str| RichText::new(text).color(Color32::from_rgb(255, 110, 110));
+    if solver == Solver::SoftStep {
+        match last.joint_solves_cut_short {
+            0 => stat(ui, "joint solves", "exact"),
+            n => stat(
+                ui,
+                "joint solves",
+                alarm(&format!("{n} cut short (raise substeps)")),
+            ),
+        }
+        return;
+    }
+    stat(
+        ui,
+        "constraint visits",
+        format!(
+            "{} ({} corrections)",
+            last.constraint_visits, last.constraint_corrections
+        ),
+    );
+    if last.budget_hit {
+        stat(ui, "budget", alarm("ran out (raise max visits)"));
+    } else {
+        stat(ui, "budget", "enough");
+    }
+}
+
 /// Bodies, contacts, substeps and constraint work of the last step, energy, and frozen bodies.
 fn world_rows(ui: &mut egui::Ui, lane: &Lane) {
     let world = &lane.world;
@@ -680,23 +711,7 @@ fn world_rows(ui: &mut egui::Ui, lane: &Lane) {
     // The soft step takes more than the setting's where contacts need them (dt over 0.02).
     stat(ui, "substeps", format!("{}", last.substeps));
     if !world.constraints.is_empty() {
-        stat(
-            ui,
-            "constraint visits",
-            format!(
-                "{} ({} corrections)",
-                last.constraint_visits, last.constraint_corrections
-            ),
-        );
-        if last.budget_hit {
-            stat(
-                ui,
-                "budget",
-                RichText::new("ran out (raise max visits)").color(Color32::from_rgb(255, 110, 110)),
-            );
-        } else {
-            stat(ui, "budget", "enough");
-        }
+        constraint_rows(ui, world.settings.solver, last);
     }
     stat(ui, "total energy", format!("{:.6e}", world.total_energy()));
     let quarantined = world.bodies.iter().filter(|b| b.quarantined).count();
