@@ -46,8 +46,8 @@ pub struct RunSummary {
     pub ground_contacts: usize,
     pub constraint_visits: usize,
     pub budget_hits: u64,
-    /// Soft step: joint-group solves that ran out of rounds (see `StepStats`).
-    pub joint_solves_cut_short: usize,
+    /// Soft step: joint groups left out of bounds by their projections (see `StepStats`).
+    pub joint_projections_cut_short: usize,
     pub energy_start: f64,
     /// Energy of the bodies still moving at the end.
     pub energy_end: f64,
@@ -177,7 +177,7 @@ impl RunSummary {
             ground_contacts: 0,
             constraint_visits: 0,
             budget_hits: 0,
-            joint_solves_cut_short: 0,
+            joint_projections_cut_short: 0,
             energy_start,
             energy_end: energy_start,
             energy_frozen: 0.0,
@@ -200,7 +200,7 @@ impl RunSummary {
         self.ground_contacts += stats.ground_contacts;
         self.constraint_visits += stats.constraint_visits;
         self.budget_hits += stats.budget_hit as u64;
-        self.joint_solves_cut_short += stats.joint_solves_cut_short;
+        self.joint_projections_cut_short += stats.joint_projections_cut_short;
         self.max_penetration = self.max_penetration.max(stats.max_penetration);
         self.stage_ms.add(&stats.timings);
         self.quarantined.extend(stats.quarantined);
@@ -266,8 +266,8 @@ fn print_summary(s: &RunSummary) {
     );
     if s.constraints > 0 && s.settings.solver == tumble::sim::settings::Solver::SoftStep {
         println!(
-            "joint solves cut short {}, worst violation {:.4}",
-            s.joint_solves_cut_short, s.max_constraint_violation
+            "joint projections cut short {}, worst violation {:.4}",
+            s.joint_projections_cut_short, s.max_constraint_violation
         );
     } else if s.constraints > 0 {
         println!(

@@ -275,10 +275,10 @@ pub struct StepStats {
     pub constraint_corrections: usize,
     /// The constraint loop stopped on its budget with constraints still violated.
     pub budget_hit: bool,
-    /// Soft step: exact solves of joint groups that ran out of rounds (an active-set loop
-    /// with rows still breaking their limits, or projections with rows still out of bounds),
-    /// each leaving its group stretched or pushed.
-    pub joint_solves_cut_short: usize,
+    /// Soft step: joint groups whose position projections ran out of rounds with a row still
+    /// outside its bounds (by more than 1e-6 of the bound): the step could not hold them, and
+    /// more substeps are the remedy.
+    pub joint_projections_cut_short: usize,
     /// Bodies asleep at the end of the step (soft-step solver).
     pub asleep: usize,
     /// Substeps the step took: the setting's count, or for the soft step more where it begins
@@ -303,7 +303,7 @@ impl StepStats {
         self.constraint_visits += other.constraint_visits;
         self.constraint_corrections += other.constraint_corrections;
         self.budget_hit |= other.budget_hit;
-        self.joint_solves_cut_short += other.joint_solves_cut_short;
+        self.joint_projections_cut_short += other.joint_projections_cut_short;
         self.asleep = other.asleep;
         self.substeps += other.substeps;
         self.quarantined.extend(other.quarantined);

@@ -661,16 +661,16 @@ fn stepping_rows(ui: &mut egui::Ui, session: &Session, lane: &Lane) {
 }
 
 /// The constraint work of the last step: the coursework's visits and budget, or whether the
-/// soft step's exact joint solves ran out of rounds.
+/// soft step's projections held its joint groups.
 fn constraint_rows(ui: &mut egui::Ui, solver: Solver, last: &crate::StepStats) {
     let alarm = |text: &str| RichText::new(text).color(Color32::from_rgb(255, 110, 110));
     if solver == Solver::SoftStep {
-        match last.joint_solves_cut_short {
-            0 => stat(ui, "joint solves", "exact"),
+        match last.joint_projections_cut_short {
+            0 => stat(ui, "joint groups", "held"),
             n => stat(
                 ui,
-                "joint solves",
-                alarm(&format!("{n} cut short (raise substeps)")),
+                "joint groups",
+                alarm(&format!("{n} not held (raise substeps)")),
             ),
         }
         return;

@@ -24,11 +24,11 @@ use std::ops::Range;
 /// on one body (512 KiB of `K`).
 pub const MAX_ENVELOPE: usize = 1 << 16;
 /// Active-set rounds per solve at most (each drops or adds the rows that broke their limits).
-/// A whipping rope's taut rows take more than 8: in 20 s, rope-1000 at dt 0.02 cut 981 solves
-/// short with 8 and 43 with 32, rope-200 at dt 0.04 104 and 16, at the same run time (counted
-/// by [`crate::StepStats::joint_solves_cut_short`]). A solve that ends within 8 rounds is the
-/// same with 32. Block principal pivoting with Murty's fallback (Judice and Pires 1994) was
-/// measured too and cut as many short.
+/// A whipping rope's taut rows take more than 8: in 20 s, rope-1000 at dt 0.02 ran out in 981
+/// solves with 8 and in 43 with 32, rope-200 at dt 0.04 in 104 and 16, at the same run time
+/// (counted with a probe). A solve that ends within 8 rounds is the same with 32. Block
+/// principal pivoting with Murty's fallback (Judice and Pires 1994) was measured too and ran
+/// out as often.
 const ACTIVE_SET_ROUNDS: usize = 32;
 /// Projections of a group's positions per step at most: each projects the rows' linearisation
 /// at the poses it starts from, so where links turn far in a step (a rope's end whipping at
@@ -149,9 +149,8 @@ pub struct JointBlocks {
     rows: Vec<Row>,
     reach: Vec<usize>,
     scratch: Scratch,
-    /// Solves since the last [`JointBlocks::take_cut_short`] that ran out of rounds: an
-    /// active-set loop with rows still breaking their limits, or a group's projections with
-    /// rows still out of bounds.
+    /// Groups whose projections ran out of rounds with a row still out of bounds, since the
+    /// last [`JointBlocks::take_cut_short`].
     cut_short: usize,
     /// Which of each constraint's two bodies moved (`is_dynamic`) when the groups were made:
     /// they decide the groups.
@@ -174,7 +173,7 @@ struct Scratch {
     x: Vec<f64>,
     /// The `L D L^T` factors of `K`'s active rows and columns, by its envelope.
     factor: Factor,
-    /// Solves this scratch made that ran out of rounds (see [`JointBlocks::cut_short`]).
+    /// Projections cut short in this scratch (see [`JointBlocks::cut_short`]).
     cut_short: usize,
 }
 
@@ -486,7 +485,6 @@ impl Scratch {
                 return true;
             }
         }
-        self.cut_short += 1;
         true
     }
 }
@@ -647,7 +645,7 @@ impl JointBlocks {
             first: g.records.start,
         };
         let direct = |g: &&Group| g.direct();
-        // Whether a pose moved, and the solves cut short.
+        // Whether a pose moved, and the projections cut short.
         let run = |scratch: &mut Scratch, g: &Group| {
             let before = scratch.cut_short;
             let moved = f(scratch, view(g));
@@ -669,7 +667,7 @@ impl JointBlocks {
         moved
     }
 
-    /// The solves cut short since the last call (see [`JointBlocks::cut_short`]).
+    /// The projections cut short since the last call (see [`JointBlocks::cut_short`]).
     pub fn take_cut_short(&mut self) -> usize {
         std::mem::take(&mut self.cut_short)
     }
