@@ -264,8 +264,16 @@ const MAX_CONTACT_SUBSTEPS: u32 = 16;
 /// approach did too, in 169 of the 221 steps with manifolds of the two chains' first 500 at dt
 /// 0.04 and all through a pile's fall, for no load held.
 fn contact_substeps(dt: f64) -> u32 {
-    let wanted = (dt * CONTACT_HERTZ / CONTACT_RATE_FRACTION - 1e-9).ceil();
-    wanted.min(MAX_CONTACT_SUBSTEPS as f64) as u32
+    whole_substeps(
+        dt * CONTACT_HERTZ / CONTACT_RATE_FRACTION,
+        MAX_CONTACT_SUBSTEPS,
+    )
+}
+
+/// `wanted` substeps rounded up to a whole count, at most `most` (a count that comes out whole
+/// is not raised by its rounding).
+fn whole_substeps(wanted: f64, most: u32) -> u32 {
+    (wanted - 1e-9).ceil().min(most as f64) as u32
 }
 
 /// Longest substep of a scene with distance constraints (s).
@@ -282,8 +290,7 @@ const MAX_JOINT_SUBSTEPS: u32 = 16;
 /// (6.0 against 12.2 s). The preset's four substeps are 1/80 s or shorter up to dt 0.05, so
 /// nothing changes there (the bench's dts, the viewer slider's range).
 fn joint_substeps(dt: f64) -> u32 {
-    let wanted = (dt / JOINT_SUBSTEP - 1e-9).ceil();
-    wanted.min(MAX_JOINT_SUBSTEPS as f64) as u32
+    whole_substeps(dt / JOINT_SUBSTEP, MAX_JOINT_SUBSTEPS)
 }
 
 impl SoftStep {
