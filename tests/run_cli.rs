@@ -49,8 +49,8 @@ fn json_summary_has_the_documented_fields() {
 }
 
 /// A rope too long for its step under the soft step (rope-500 at dt 0.4, where its 16 substeps,
-/// the most a scene with distance constraints is raised to, are 1/40 s long: from its 37th
-/// step its links turn too far within one for the projections' rounds) is reported as such in
+/// the most a scene with distance constraints is raised to, are 1/40 s long: after 37 steps
+/// its links turn too far within one for the projections' rounds) is reported as such in
 /// the JSON summary; a rope the step holds reports none, in words.
 #[test]
 fn joint_projections_cut_short_are_reported() {
