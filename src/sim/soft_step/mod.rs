@@ -603,11 +603,11 @@ impl SoftStep {
     /// last drift, and in earlier substeps only where a row is far out (see
     /// [`MIDSTEP_PROJECTION_TOLERANCE`]): a projection moves poses without the velocity that
     /// would move them, and so takes energy with every correction; between projections the
-    /// soft joint rows hold the bounds. Measured (`bench accuracy`, dt 0.04 ... 0.0025): projecting in every substep,
-    /// the pendulum lost 6.6e-4 ... 4.1e-5 of its amplitude in 20 s (Rapier's rope: 6.7e-4 ...
-    /// 4.1e-5); once per step, 1.7e-4 ... 1.0e-5, with the chains' worst stretch 1.2e-4 of the
-    /// rest length at dt 0.04 (3.5e-5 before) and a quarter fewer group solves; never, at most
-    /// 2.4e-6, but the chains stretched by 1e-2.
+    /// soft joint rows hold the bounds. Measured (`bench accuracy`, dt 0.04 ... 0.0025):
+    /// projecting in every substep, the pendulum lost 6.6e-4 ... 4.1e-5 of its amplitude in
+    /// 20 s (Rapier's rope: 6.7e-4 ... 4.1e-5); once per step, 1.7e-4 ... 1.0e-5, with the
+    /// chains' worst stretch 1.2e-4 of the rest length at dt 0.04 (3.5e-5 before) and a
+    /// quarter fewer group solves; never, at most 2.4e-6, but the chains stretched by 1e-2.
     fn substep(
         &mut self,
         ctx: &StepContext,
