@@ -342,7 +342,14 @@ impl SoftStep {
             return;
         }
         let pairs = self.broad_phase(ctx, &mut scene, broad, watch, stats);
-        self.narrow_phase(scene.bodies, scene.shapes, broad, &pairs, watch, stats);
+        let dt = ctx.settings.time_step;
+        self.narrow_phase(
+            (scene.bodies, scene.shapes, dt),
+            broad,
+            &pairs,
+            watch,
+            stats,
+        );
         watch.enter(Stage::SolvePrepare);
         let view = &*scene.bodies;
         let w = &mut self.work;
@@ -482,8 +489,7 @@ impl SoftStep {
     /// then pairs in (body 1, body 2) order.
     fn narrow_phase(
         &mut self,
-        bodies: &[RigidBody],
-        shapes: &[Shape],
+        (bodies, shapes, dt): (&[RigidBody], &[Shape], f64),
         broad: &BroadPhase,
         pairs: &[(u32, u32)],
         watch: &mut Stopwatch,
@@ -501,7 +507,7 @@ impl SoftStep {
             parallel::extend_filter_map(manifolds, range.into_par_iter(), 256, |j| {
                 let b = &bodies[j];
                 let reaches = b.is_awake() && grown[j].min.y <= 0.0;
-                reaches.then(|| ground_manifold(j, b, &shapes[b.shape], margins[j]))?
+                reaches.then(|| ground_manifold(j, b, &shapes[b.shape], (margins[j], dt)))?
             });
         }
         stats.ground_contacts = manifolds.len();
@@ -514,7 +520,7 @@ impl SoftStep {
                 let (i, j) = (i as usize, j as usize);
                 let prediction = margins[i] + margins[j];
                 let (a, b) = ((i, &bodies[i]), (j, &bodies[j]));
-                body_manifold(a, b, shapes, prediction, state)
+                body_manifold(a, b, shapes, (prediction, dt), state)
             });
         }
         self.pair_states.keep(pairs, states);
@@ -948,7 +954,7 @@ mod tests {
             let b = RigidBody::on_shape(&shapes[s2], s2, 1.0, false, direction * distance, q2);
             let prediction = 0.2 * next();
             let mut state = manifold::PairState::default();
-            let touches = body_manifold((0, &a), (1, &b), &shapes, prediction, &mut state);
+            let touches = body_manifold((0, &a), (1, &b), &shapes, (prediction, 0.02), &mut state);
             let half = 0.5 * prediction;
             let kept = spheres_reach((&a, radii[s1] + half), (&b, radii[s2] + half));
             found += usize::from(touches.is_some());
