@@ -96,6 +96,9 @@ pub struct SoftStep {
     last_settings: Option<crate::sim::Settings>,
     /// Length of the last solved step's substeps (the carried impulses are per substep).
     last_substep: f64,
+    /// Doublings of a jointed scene's substeps since its joint projections were cut short
+    /// (see [`joint_substeps`]).
+    joint_boost: u32,
     work: Workspace,
 }
 
@@ -174,6 +177,7 @@ pub struct Carried {
     /// a restored state continued with its own settings repeats its steps bit for bit.
     last_settings: Option<crate::sim::Settings>,
     last_substep: f64,
+    joint_boost: u32,
 }
 
 impl Carried {
@@ -200,15 +204,17 @@ struct Substeps {
 impl Substeps {
     /// The step's substeps: the setting's count, raised in a step that begins with contacts
     /// touching ([`touches`]) until each substep is short enough for the contacts' full
-    /// stiffness (see [`contact_substeps`]), and in a scene with distance constraints until
-    /// each is short enough for a whipping rope (see [`joint_substeps`]).
-    fn new(ctx: &StepContext, touching: bool, jointed: bool) -> Option<Self> {
+    /// stiffness (see [`contact_substeps`]), and in a scene with distance constraints
+    /// (`joints`: its boost) until each is short enough for a whipping rope (see
+    /// [`joint_substeps`]).
+    fn new(ctx: &StepContext, touching: bool, joints: Option<u32>) -> Option<Self> {
         let mut count = ctx.settings.substeps.max(1);
         if touching {
             count = count.max(contact_substeps(ctx.settings.time_step));
         }
-        if jointed {
-            count = count.max(joint_substeps(ctx.settings.time_step));
+        if let Some(boost) = joints {
+            let (dt, gravity) = (ctx.settings.time_step, ctx.settings.gravity.length());
+            count = count.max(joint_substeps(dt, gravity, boost));
         }
         let h = ctx.settings.time_step / count as f64;
         if h <= 0.0 || !h.is_finite() {
@@ -276,10 +282,15 @@ fn whole_substeps(wanted: f64, most: u32) -> u32 {
     (wanted - 1e-9).ceil().min(most as f64) as u32
 }
 
-/// Longest substep of a scene with distance constraints (s).
+/// Longest substep of a scene with distance constraints (s), under [`JOINT_SUBSTEP_GRAVITY`].
 const JOINT_SUBSTEP: f64 = 1.0 / 80.0;
-/// Most substeps a scene with distance constraints is raised to by [`joint_substeps`].
+/// Earth's gravity (units/s^2), the default.
+const JOINT_SUBSTEP_GRAVITY: f64 = 9.8;
+/// Most substeps a scene with distance constraints is raised to by [`joint_substeps`], before
+/// its boost.
 const MAX_JOINT_SUBSTEPS: u32 = 16;
+/// Most doublings of a jointed scene's substeps (see [`joint_substeps`]).
+const MAX_JOINT_BOOST: u32 = 2;
 
 /// Substeps a step of `dt` takes where the scene has distance constraints: enough for substeps
 /// of at most 1/80 s, up to [`MAX_JOINT_SUBSTEPS`]. Within a longer substep a whipping rope's
@@ -289,8 +300,19 @@ const MAX_JOINT_SUBSTEPS: u32 = 16;
 /// 1/80 s both hold at dt 0.075 and 0.1 for 20 s, and rope-1000 at dt 0.1 runs in half the time
 /// (6.0 against 12.2 s). The preset's four substeps are 1/80 s or shorter up to dt 0.05, so
 /// nothing changes there (the bench's dts, the viewer slider's range).
-fn joint_substeps(dt: f64) -> u32 {
-    whole_substeps(dt / JOINT_SUBSTEP, MAX_JOINT_SUBSTEPS)
+///
+/// Under stronger gravity `g` a rope whips faster (a swing's time scales as sqrt(length / g)),
+/// so the longest substep is 1/80 s times sqrt(9.8 / g): rope-200 at dt 0.05 came apart under
+/// 5, 6 and 8 g with substeps of 1/80 s and gained 3.7 %, 27 % and 2.3 times its energy in
+/// 20 s; eight substeps hold each (measured). A rope that still whips too fast (a step past the
+/// cap) has its joint projections cut short ([`StepStats::joint_projections_cut_short`]): from
+/// the next step on the substeps are doubled, up to [`MAX_JOINT_BOOST`] times (`boost`), until
+/// the settings change. That holds a rope caught early (rope-1000 at dt 0.2, cut short in 5
+/// groups), not one already apart (rope-500 at dt 0.4).
+fn joint_substeps(dt: f64, gravity: f64, boost: u32) -> u32 {
+    // A swing's time scales as sqrt(length / g): under stronger gravity, shorter substeps.
+    let longest = JOINT_SUBSTEP * (JOINT_SUBSTEP_GRAVITY / gravity).sqrt().min(1.0);
+    whole_substeps(dt / longest, MAX_JOINT_SUBSTEPS) << boost
 }
 
 impl SoftStep {
@@ -314,6 +336,7 @@ impl SoftStep {
             pair_states: self.pair_states.clone(),
             last_settings: self.last_settings.clone(),
             last_substep: self.last_substep,
+            joint_boost: self.joint_boost,
         }
     }
 
@@ -324,6 +347,7 @@ impl SoftStep {
         self.pair_states.clone_from(&carried.pair_states);
         self.last_settings.clone_from(&carried.last_settings);
         self.last_substep = carried.last_substep;
+        self.joint_boost = carried.joint_boost;
     }
 
     /// One step: collide, then solve in substeps.
@@ -356,8 +380,8 @@ impl SoftStep {
         w.colours
             .colour(&mut w.manifolds, view.len(), |i| view[i].is_awake());
         let touching = self.work.manifolds.iter().any(touches);
-        let jointed = !scene.constraints.is_empty();
-        let Some(substeps) = Substeps::new(ctx, touching, jointed) else {
+        let joints = (!scene.constraints.is_empty()).then_some(self.joint_boost);
+        let Some(substeps) = Substeps::new(ctx, touching, joints) else {
             return;
         };
         self.rescale_warm_start(substeps.h);
@@ -380,6 +404,9 @@ impl SoftStep {
         }
         watch.enter(Stage::SolveFinish);
         stats.joint_projections_cut_short = self.blocks.take_cut_short();
+        if stats.joint_projections_cut_short > 0 {
+            self.joint_boost = (self.joint_boost + 1).min(MAX_JOINT_BOOST);
+        }
         self.finish(ctx, (scene.bodies, scene.constraints, scene.start), stats);
     }
 
@@ -418,6 +445,7 @@ impl SoftStep {
         let changed = self.last_settings.as_ref() != Some(&ctx.settings);
         if changed {
             self.last_settings = Some(ctx.settings.clone());
+            self.joint_boost = 0;
         }
         let bodies = &mut *scene.bodies;
         if changed || !ctx.settings.sleep {
