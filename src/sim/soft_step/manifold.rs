@@ -84,12 +84,13 @@ fn pose(body: &RigidBody) -> Pose {
 pub type PairState = ContactManifold<(), ()>;
 
 /// The manifold between bodies `i < j` with points up to `prediction` apart, or None, kept
-/// for a step of `dt` (see [`reduce`]); `state` is the pair's from the last step, updated. Two boxes meet through parry's box-box
-/// separating-axis test and face clipping (about 4x cheaper than GJK and clipping on their
-/// hulls, measured on box pairs in contact); other pairs through GJK on the hulls. A pair
-/// found apart is not queried while its gap along its last normal stays beyond `prediction`
-/// (two support points instead of parry's set-up and GJK: pile-200's narrow phase at dt 0.005
-/// on one thread 0.38 -> 0.25 ms a step, where 470 of 800 candidate pairs a step are apart).
+/// for a step of `dt` (see [`reduce`]); `state` is the pair's from the last step, updated.
+/// Two boxes meet through parry's box-box separating-axis test and face clipping (about 4x
+/// cheaper than GJK and clipping on their hulls, measured on box pairs in contact); other pairs
+/// through GJK on the hulls. A pair found apart is not queried while its gap along its last
+/// normal stays beyond `prediction` (two support points instead of parry's set-up and GJK:
+/// pile-200's narrow phase at dt 0.005 on one thread 0.38 -> 0.25 ms a step, where 470 of 800
+/// candidate pairs a step are apart).
 pub fn body_manifold(
     (i, body1): (usize, &RigidBody),
     (j, body2): (usize, &RigidBody),
