@@ -291,11 +291,11 @@ pub fn ground_manifold(
 /// At most [`MAX_POINTS`] of `points` that keep the patch's extent: the deepest (see
 /// [`anchor_point`]), the one farthest from it, the one spanning the largest triangle with
 /// those two, and the one lying farthest outside that triangle (the reduction of Box2D and
-/// Rapier, in 3D). Points are weighed by their separation `ahead` at the step's end if the
-/// bodies kept their velocities: a body spinning onto a face brings its far edge down while
-/// the touching one lifts. Weighed by their separation now, a box of scatter-1000 turning at
-/// 9 rad/s kept four points on its lifting side and sank 1.5 units (a quarter of its height)
-/// into the box below in one step.
+/// Rapier, in 3D). Points are weighed by `ahead`, their separation at the step's end if the
+/// bodies kept their velocities (see [`separation_ahead`]): a body spinning onto a face brings
+/// its far edge down while the touching one lifts. Weighed by their separation now, a box of
+/// scatter-1000 turning at 9 rad/s kept four points on its lifting side and sank 1.5 units (a
+/// quarter of its height) into the box below in one step.
 fn reduce(
     mut points: Candidates,
     normal: DVec3,
