@@ -534,6 +534,24 @@ fn fast_box_does_not_pass_through_a_thin_wall() {
     }
 }
 
+/// Lowers body `k` (tilted up to +x) until its lowest vertex is 0.01 above the surface at
+/// height `surface`, turns it at `spin` rad/s about -z (its raised side down) and returns the
+/// deepest manifold point over 0.5 s.
+fn deepest_turning_down(world: &mut World, k: usize, surface: f64, spin: f64) -> f64 {
+    let lowest = world
+        .current_vertices(k)
+        .iter()
+        .map(|v| v.y)
+        .fold(f64::INFINITY, f64::min);
+    world.bodies[k].position.y += surface + 0.01 - lowest;
+    world.bodies[k].angular_velocity = DVec3::new(0.0, 0.0, -spin);
+    let mut deepest: f64 = 0.0;
+    for _ in 0..(0.5 / world.settings.time_step) as usize {
+        deepest = deepest.max(world.step().max_penetration);
+    }
+    deepest
+}
+
 /// A box turning onto the box below, its raised side coming down as the touching side lifts,
 /// does not sink into it: the manifold keeps the points the turn brings down, not those nearest
 /// now. (Kept by their separation at the step's start, a box of scatter-1000 turning at 9
@@ -546,17 +564,7 @@ fn a_box_turning_onto_another_does_not_sink_into_it() {
         // Turned against the box below (an eight-point patch) and tilted, its lowest corner
         // 0.01 above the lower box's top face (y = 1), turning its raised side down.
         world.bodies[1].orientation = DQuat::from_rotation_z(0.1) * DQuat::from_rotation_y(0.4);
-        let lowest = world
-            .current_vertices(1)
-            .iter()
-            .map(|v| v.y)
-            .fold(f64::INFINITY, f64::min);
-        world.bodies[1].position.y += 1.01 - lowest;
-        world.bodies[1].angular_velocity = DVec3::new(0.0, 0.0, -spin);
-        let mut deepest: f64 = 0.0;
-        for _ in 0..(0.5 / dt) as usize {
-            deepest = deepest.max(world.step().max_penetration);
-        }
+        let deepest = deepest_turning_down(&mut world, 1, 1.0, spin);
         assert!(deepest < 0.004, "{spin} rad/s at dt {dt}: sank {deepest}");
     }
 }
@@ -577,17 +585,7 @@ fn a_cylinder_turning_onto_the_ground_does_not_sink_into_it() {
         };
         let names = vec!["cylinder".into()];
         let mut world = World::new(vec![shape.clone()], names, vec![body], vec![], settings);
-        let lowest = world
-            .current_vertices(0)
-            .iter()
-            .map(|v| v.y)
-            .fold(f64::INFINITY, f64::min);
-        world.bodies[0].position.y += 0.01 - lowest;
-        world.bodies[0].angular_velocity = DVec3::new(0.0, 0.0, -spin);
-        let mut deepest: f64 = 0.0;
-        for _ in 0..12 {
-            deepest = deepest.max(world.step().max_penetration);
-        }
+        let deepest = deepest_turning_down(&mut world, 0, 0.0, spin);
         assert!(deepest < 0.003, "{spin} rad/s: sank {deepest}");
     }
 }
