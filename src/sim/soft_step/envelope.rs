@@ -5,6 +5,11 @@
 //! factoring and solving take time and memory linear in its length, where a dense matrix would
 //! take the square (memory) and the cube (time).
 
+/// Fraction of its diagonal that elimination must leave of a row's pivot: below it the row
+/// depends on the rows above it, or nearly (an over-braced truss), and a solve in this order
+/// would magnify rounding by the inverse ([`super::pivoted_ldl`] solves such systems).
+pub const WELL_CONDITIONED: f64 = 1e-6;
+
 /// Where one row's entries lie: columns `first..=i` of row `i`, at `offset..` in the values.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Row {
@@ -88,7 +93,8 @@ pub fn principal(
 /// Overwrites `values` with the factors of `K = L D L^T` (Golub and Van Loan, "Matrix
 /// Computations", 4.1.2) row by row: `L`'s entries left of the diagonal (its diagonal is one)
 /// and `D` on the diagonal, and `inverse_diagonal` with `D`'s reciprocals; false if `K` is not
-/// positive definite. Against Cholesky's `L L^T` a row costs one division and no square root,
+/// positive definite, or so nearly singular in this order that a pivot is under
+/// [`WELL_CONDITIONED`] of its diagonal. Against Cholesky's `L L^T` a row costs one division and no square root,
 /// and each row waits on the one before it (a chain's system is tridiagonal).
 pub fn ldl_factor(rows: &[Row], values: &mut [f64], inverse_diagonal: &mut Vec<f64>) -> bool {
     let n = rows.len();
@@ -107,14 +113,15 @@ pub fn ldl_factor(rows: &[Row], values: &mut [f64], inverse_diagonal: &mut Vec<f
             values[offset_i + j - first_i] = s;
         }
         // ... then `D_i = K_ii - sum_p u_ip L_ip` and `L_ip = u_ip / D_p`.
-        let mut d = values[offset_i + i - first_i];
+        let diagonal = values[offset_i + i - first_i];
+        let mut d = diagonal;
         for p in first_i..i {
             let u = values[offset_i + p - first_i];
             let l = u * inverse_diagonal[p];
             d -= u * l;
             values[offset_i + p - first_i] = l;
         }
-        if d <= 1e-300 || !d.is_finite() {
+        if !(d > WELL_CONDITIONED * diagonal && d.is_finite()) {
             return false;
         }
         values[offset_i + i - first_i] = d;

@@ -11,6 +11,7 @@
 use super::constraint_graph::Shared;
 use super::disjoint_sets::DisjointSets;
 use super::envelope::{self, Row};
+use super::pivoted_ldl::{self, PivotedLdl};
 use super::solver_body::SolverBody;
 use crate::sim::body::RigidBody;
 use crate::sim::constraint::DistanceConstraint;
@@ -184,6 +185,8 @@ struct Factor {
     rows: Vec<Row>,
     values: Vec<f64>,
     inverse_diagonal: Vec<f64>,
+    /// For systems the envelope's factorisation refuses.
+    pivoted: PivotedLdl,
 }
 
 impl JointBlocks {
@@ -494,11 +497,17 @@ impl Factor {
     /// system for `x`, which holds the right-hand side; false if it is not positive definite.
     fn solve(&mut self, rows: &[Row], (k, active): (&[f64], &[usize]), x: &mut [f64]) -> bool {
         envelope::principal((rows, k), active, (&mut self.rows, &mut self.values));
-        if !envelope::ldl_factor(&self.rows, &mut self.values, &mut self.inverse_diagonal) {
+        if envelope::ldl_factor(&self.rows, &mut self.values, &mut self.inverse_diagonal) {
+            envelope::ldl_substitute(&self.rows, &self.values, &self.inverse_diagonal, x);
+            return true;
+        }
+        // Rows dependent, or nearly in this order (an over-braced truss): solved again with
+        // pivoting, the dependent rows given no impulse.
+        if active.len() > pivoted_ldl::MAX_ROWS {
             return false;
         }
-        envelope::ldl_substitute(&self.rows, &self.values, &self.inverse_diagonal, x);
-        true
+        envelope::principal((rows, k), active, (&mut self.rows, &mut self.values));
+        self.pivoted.solve(&self.rows, &self.values, x).is_some()
     }
 }
 

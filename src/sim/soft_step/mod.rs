@@ -17,6 +17,7 @@ pub mod envelope;
 pub mod joint_block;
 pub mod joint_solver;
 pub mod manifold;
+pub mod pivoted_ldl;
 pub mod restitution;
 pub mod sleep;
 pub mod softness;
