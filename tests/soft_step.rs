@@ -328,6 +328,73 @@ fn chains_listed_twice_keep_within_their_bounds() {
     }
 }
 
+/// Nine boxes tilted at random, each joined to every other by a rod between their first
+/// corners: 36 rods where 21 fix the corners, half of them rigid and half free to shorten to
+/// 0.8 of their length; dropped from 10 units for 8 s at `dt`. Returns the highest energy
+/// relative to the start and the worst stretch relative to a rest length.
+fn drop_over_braced_truss(dt: f64) -> (f64, f64) {
+    let shape = Shape::from_tet_mesh(&assets::cuboid(DVec3::splat(0.5))).unwrap();
+    let mut rng = tumble::sim::rng::Rng::new(45);
+    let bodies: Vec<RigidBody> = (0..9)
+        .map(|k| {
+            let grid = DVec3::new(3.0 * (k % 3) as f64, 10.0, 3.0 * (k / 3) as f64);
+            let jitter = DVec3::new(rng.range(-0.5, 0.5), rng.range(-1.5, 1.5), 0.0);
+            RigidBody::on_shape(&shape, 0, 100.0, false, grid + jitter, rng.tilt(3.0))
+        })
+        .collect();
+    let shapes = vec![shape];
+    let mut constraints = Vec::new();
+    for (n, (a, b)) in (0..9)
+        .flat_map(|a| (a + 1..9).map(move |b| (a, b)))
+        .enumerate()
+    {
+        let lower = if n % 2 == 0 { 1.0 } else { 0.8 };
+        constraints.extend(
+            tumble::sim::constraint::DistanceConstraint::lower_and_upper(
+                &bodies,
+                &shapes,
+                (a, 0),
+                (b, 0),
+                lower,
+                1.0,
+            ),
+        );
+    }
+    let names = vec!["box".into()];
+    let mut world = World::new(shapes, names, bodies, constraints, accurate(dt));
+    let e0 = world.total_energy();
+    let (mut highest, mut worst): (f64, f64) = (1.0, 0.0);
+    for _ in 0..(8.0 / dt) as usize {
+        world.step();
+        highest = highest.max(world.total_energy() / e0);
+        for c in &world.constraints {
+            worst = worst.max(c.violation(&world.bodies) / c.rest_length);
+        }
+    }
+    assert!(world.all_finite());
+    (highest, worst)
+}
+
+#[test]
+fn an_over_braced_truss_with_slack_rods_lands_without_gaining_energy() {
+    // Rows that depend on each other with a range each: the active-set loop can cycle
+    // between sets of twins, and did until this truss had 45 times its energy at dt 0.04
+    // (this test, before). A group whose loop cycles is left alone for that solve and handed
+    // to the Gauss-Seidel rows from the next step: it lands with its rods within a few
+    // percent, as the contacts' solver holds them.
+    for dt in [0.04, 0.02, 0.005] {
+        let (highest, worst) = drop_over_braced_truss(dt);
+        assert!(
+            highest < 1.001,
+            "dt {dt}: energy rose to {highest} of its start"
+        );
+        assert!(
+            worst < 0.1,
+            "dt {dt}: stretched by {worst} of a rest length"
+        );
+    }
+}
+
 #[test]
 fn a_long_rope_stays_within_its_bounds() {
     // 150 links swinging down from the horizontal for 8 s, the free end falling freely and

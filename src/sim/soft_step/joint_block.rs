@@ -129,11 +129,14 @@ pub struct Group {
     couplings: Range<usize>,
     /// Entries of `K`'s envelope; above [`MAX_ENVELOPE`] the group is left to Gauss-Seidel.
     envelope: usize,
+    /// Left to Gauss-Seidel since its active sets cycled on rows that depend on each other
+    /// ([`Scratch::active_set_rounds`]).
+    relaxed: bool,
 }
 
 impl Group {
     fn direct(&self) -> bool {
-        self.envelope <= MAX_ENVELOPE
+        self.envelope <= MAX_ENVELOPE && !self.relaxed
     }
 }
 
@@ -153,6 +156,9 @@ pub struct JointBlocks {
     /// Groups whose projections ran out of rounds with a row still out of bounds, since the
     /// last [`JointBlocks::take_cut_short`].
     cut_short: usize,
+    /// Per group, whether a solve's active sets cycled since the last
+    /// [`JointBlocks::take_relaxed`].
+    cycled: Vec<bool>,
     /// Which of each constraint's two bodies moved (`is_dynamic`) when the groups were made:
     /// they decide the groups.
     built_for: Vec<(bool, bool)>,
@@ -176,6 +182,9 @@ struct Scratch {
     factor: Factor,
     /// Projections cut short in this scratch (see [`JointBlocks::cut_short`]).
     cut_short: usize,
+    /// Whether an active-set loop with dependent rows ran out of rounds, and relaxing did not
+    /// settle, since the last look.
+    cycled: bool,
 }
 
 /// The factors of `K = L D L^T` kept by its envelope ([`envelope`]): `L` left of the diagonal,
@@ -246,6 +255,7 @@ impl JointBlocks {
             records,
             couplings: first..self.couplings.len(),
             envelope,
+            relaxed: false,
         });
     }
 
@@ -467,6 +477,8 @@ impl Scratch {
             ..
         } = self;
         let n = group.records.len();
+        let matrix = (group.rows, group.reach, &k[..]);
+        let mut dependent = false;
         for _ in 0..ACTIVE_SET_ROUNDS {
             active.clear();
             active.extend((0..n).filter(|&i| side[i] != Side::Free));
@@ -476,17 +488,26 @@ impl Scratch {
                     .iter()
                     .map(|&i| if side[i] == Side::Upper { hi[i] } else { lo[i] } - u[i]),
             );
-            if !self.factor.solve(group.rows, (k, active), x) {
+            let Some(kept) = self.factor.solve(group.rows, (k, active), x) else {
                 return false;
-            }
+            };
+            dependent |= kept < active.len();
             lambda.iter_mut().for_each(|l| *l = 0.0);
             for (a, &i) in active.iter().enumerate() {
                 lambda[i] = x[a];
             }
-            let matrix = (group.rows, group.reach, &k[..]);
             if !update_sides((u, lo, hi), lambda, matrix, side) {
                 return true;
             }
+        }
+        // Rows that depend on each other (an over-braced truss) with a range each: the active
+        // sets can cycle, each leaving a row out of range that a twin would have held. The
+        // last impulses are relaxed into ranges; if that does not settle either, the solve is
+        // refused (the group left alone in this pass; its impulses, applied, tore a truss
+        // apart) and the group is flagged, to be handed to Gauss-Seidel from the next step.
+        if dependent && !relax_ranges((u, lo, hi), lambda, matrix, side) {
+            self.cycled = true;
+            return false;
         }
         true
     }
@@ -494,21 +515,77 @@ impl Scratch {
 
 impl Factor {
     /// Factors `K`'s `active` rows and columns (`K` in the layout `rows`) and solves that
-    /// system for `x`, which holds the right-hand side; false if it is not positive definite.
-    fn solve(&mut self, rows: &[Row], (k, active): (&[f64], &[usize]), x: &mut [f64]) -> bool {
+    /// system for `x`, which holds the right-hand side: the number of rows kept (the others
+    /// depend on them and get no impulse), or None if it is not positive semi-definite.
+    fn solve(
+        &mut self,
+        rows: &[Row],
+        (k, active): (&[f64], &[usize]),
+        x: &mut [f64],
+    ) -> Option<usize> {
         envelope::principal((rows, k), active, (&mut self.rows, &mut self.values));
         if envelope::ldl_factor(&self.rows, &mut self.values, &mut self.inverse_diagonal) {
             envelope::ldl_substitute(&self.rows, &self.values, &self.inverse_diagonal, x);
-            return true;
+            return Some(active.len());
         }
         // Rows dependent, or nearly in this order (an over-braced truss): solved again with
-        // pivoting, the dependent rows given no impulse.
+        // pivoting.
         if active.len() > pivoted_ldl::MAX_ROWS {
-            return false;
+            return None;
         }
         envelope::principal((rows, k), active, (&mut self.rows, &mut self.values));
-        self.pivoted.solve(&self.rows, &self.values, x).is_some()
+        self.pivoted.solve(&self.rows, &self.values, x)
     }
+}
+
+/// Sweeps of [`relax_ranges`] at most.
+const RELAX_SWEEPS: usize = 100;
+
+/// Projected Gauss-Seidel (Cottle, Pang and Stone, "The Linear Complementarity Problem",
+/// 1992, 5.2) from the impulses `lambda`: each row's impulse in turn set to bring its rate to
+/// the nearer end of its range, or to zero where its rate is inside, until no impulse moves a
+/// rate by more than rounding; then the sides held are those of the impulses. With `K` only
+/// semi-definite it does not cycle as the active-set loop can, and no update exceeds the
+/// row's own residual. True if it settled within [`RELAX_SWEEPS`].
+fn relax_ranges(
+    (u, lo, hi): (&[f64], &[f64], &[f64]),
+    lambda: &mut [f64],
+    (rows, reach, k): (&[Row], &[usize], &[f64]),
+    side: &mut [Side],
+) -> bool {
+    let mut converged = false;
+    for _ in 0..RELAX_SWEEPS {
+        let mut moved: f64 = 0.0;
+        for i in 0..u.len() {
+            let diagonal = k[envelope::at(rows, i, i)];
+            if diagonal.is_nan() || diagonal <= 0.0 {
+                continue;
+            }
+            let rate = u[i] + envelope::row_times(rows, k, reach, i, lambda);
+            let old = lambda[i];
+            let (to_lo, to_hi) = (
+                old + (lo[i] - rate) / diagonal,
+                old + (hi[i] - rate) / diagonal,
+            );
+            lambda[i] = 0.0f64.max(to_lo).min(to_hi);
+            let tolerance = 1e-12 * (1.0 + rate.abs());
+            moved = moved.max(((lambda[i] - old) * diagonal).abs() / tolerance);
+        }
+        if moved <= 1.0 {
+            converged = true;
+            break;
+        }
+    }
+    for (s, &l) in side.iter_mut().zip(lambda.iter()) {
+        if *s != Side::Both {
+            *s = match l {
+                l if l > 0.0 => Side::Lower,
+                l if l < 0.0 => Side::Upper,
+                _ => Side::Free,
+            };
+        }
+    }
+    converged
 }
 
 /// [`Scratch::solve_ranges`] for a single row (a pendulum, a rod to a fixed body): the rate
@@ -570,7 +647,7 @@ fn update_sides(
 }
 
 impl JointBlocks {
-    /// The world's constraints (indices) in groups too large to solve directly.
+    /// The world's constraints (indices) in groups too large to solve directly, or relaxed.
     pub fn large_group_constraints(&self) -> Vec<usize> {
         let mut out = Vec::new();
         for g in &self.groups {
@@ -641,9 +718,12 @@ impl JointBlocks {
             reach,
             scratch,
             cut_short,
+            cycled,
             ..
         } = self;
+        cycled.resize(groups.len(), false);
         let held = Shared::new(held);
+        let cycled_in = Shared::new(cycled);
         let view = |g: &Group| GroupView {
             records: &records[g.records.clone()],
             couplings: &couplings[g.couplings.clone()],
@@ -653,20 +733,26 @@ impl JointBlocks {
             held: &held,
             first: g.records.start,
         };
-        let direct = |g: &&Group| g.direct();
+        let direct = |(_, g): &(usize, &Group)| g.direct();
         // Whether a pose moved, and the projections cut short.
-        let run = |scratch: &mut Scratch, g: &Group| {
+        let run = |scratch: &mut Scratch, (index, g): (usize, &Group)| {
             let before = scratch.cut_short;
             let moved = f(scratch, view(g));
-            (moved, scratch.cut_short - before)
+            let cut = scratch.cut_short - before;
+            if std::mem::take(&mut scratch.cycled) {
+                // SAFETY: each group's own flag, written by the one thread that solves it.
+                unsafe { cycled_in.write(index, true) };
+            }
+            (moved, cut)
         };
         let either = |a: (bool, usize), b: (bool, usize)| (a.0 || b.0, a.1 + b.1);
         let (moved, cut) = if groups.len() < PARALLEL_GROUPS {
-            let solved = groups.iter().filter(direct);
+            let solved = groups.iter().enumerate().filter(direct);
             solved.fold((false, 0), |sum, g| either(sum, run(scratch, g)))
         } else {
             groups
                 .par_iter()
+                .enumerate()
                 .with_min_len(16)
                 .filter(direct)
                 .map_init(Scratch::default, run)
@@ -674,6 +760,20 @@ impl JointBlocks {
         };
         *cut_short += cut;
         moved
+    }
+
+    /// Hands the groups whose active sets cycled to Gauss-Seidel, between steps (within a
+    /// step the rows of [`JointBlocks::large_group_constraints`] are fixed); true if any was
+    /// (the list changed).
+    pub fn take_relaxed(&mut self) -> bool {
+        let mut any = false;
+        for (g, cycled) in self.groups.iter_mut().zip(&mut self.cycled) {
+            if std::mem::take(cycled) {
+                g.relaxed = true;
+                any = true;
+            }
+        }
+        any
     }
 
     /// The projections cut short since the last call (see [`JointBlocks::cut_short`]).

@@ -622,6 +622,8 @@ impl SoftStep {
         if !self.blocks.fits(constraints, bodies) {
             self.blocks = JointBlocks::new(constraints, bodies);
             work.large_groups = self.blocks.large_group_constraints();
+        } else if self.blocks.take_relaxed() {
+            work.large_groups = self.blocks.large_group_constraints();
         }
         work.rows.clear();
         work.rows.extend(joint_solver::prepare(

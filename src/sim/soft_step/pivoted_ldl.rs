@@ -7,15 +7,20 @@
 //! scene joins the same point of eight bodies by 28 rods, of which 18 fix it. The envelope's
 //! factorisation in row order ([`super::envelope`]) keeps the rows' order for a chain's
 //! sparsity; on the cube it met pivots of 1e-16 of their diagonal, and as the truss turned,
-//! rows nearly dependent in that order (1e-9) whose impulses tore it apart.
+//! rows nearly dependent in that order (1e-9) whose impulses tore it apart. Rows that depend
+//! on each other with a range each can make the active sets cycle; see
+//! [`super::joint_block`].
 
 use super::envelope::{self, Row};
 
 /// Rows at most solved this way (a dense matrix of 2 MiB).
 pub const MAX_ROWS: usize = 512;
 /// What is left of a row's diagonal, relative to it, under which the row counts as dependent.
-/// Rounding leaves 1e-16 to 1e-14 of it on the cube; the rows kept there leave 1e-2 and more.
-const DEPENDENT: f64 = 1e-10;
+/// Rounding leaves 1e-16 to 1e-14 of it on the cube, whose rows kept leave 1e-2 and more; a
+/// truss nearly flat leaves anything between, and a row held on 1e-9 of its diagonal takes
+/// an impulse 1e9 times its error (dropped only under 1e-10, such a truss of nine bodies
+/// landing at dt 0.02 gained 290 times its energy; under 1e-6, 0.2 %: a probe).
+const DEPENDENT: f64 = 1e-6;
 
 /// The dense matrix (scaled to a unit diagonal), the row order and the buffers of one solve.
 #[derive(Debug, Clone, Default)]
