@@ -762,18 +762,27 @@ impl JointBlocks {
         moved
     }
 
-    /// Hands the groups whose active sets cycled to Gauss-Seidel, between steps (within a
-    /// step the rows of [`JointBlocks::large_group_constraints`] are fixed); true if any was
-    /// (the list changed).
-    pub fn take_relaxed(&mut self) -> bool {
-        let mut any = false;
+    /// Between steps (within a step the rows of [`JointBlocks::large_group_constraints`] are
+    /// fixed): marks the constraints of the groups whose active sets cycled in `relaxed` (per
+    /// world constraint), then hands each group with a marked constraint to Gauss-Seidel;
+    /// true if a group's solver changed.
+    pub fn relax_cycled(&mut self, relaxed: &mut [bool]) -> bool {
+        let mut changed = false;
         for (g, cycled) in self.groups.iter_mut().zip(&mut self.cycled) {
+            let constraints =
+                |r: &DistanceRecord| r.first_constraint..r.first_constraint + r.constraint_count;
+            let records = &self.records[g.records.clone()];
             if std::mem::take(cycled) {
-                g.relaxed = true;
-                any = true;
+                records
+                    .iter()
+                    .flat_map(constraints)
+                    .for_each(|c| relaxed[c] = true);
             }
+            let now = records.iter().flat_map(constraints).any(|c| relaxed[c]);
+            changed |= now != g.relaxed;
+            g.relaxed = now;
         }
-        any
+        changed
     }
 
     /// The projections cut short since the last call (see [`JointBlocks::cut_short`]).

@@ -92,6 +92,10 @@ pub struct SoftStep {
     /// Bounding radius of each shape (for the speculative margin of spinning bodies).
     radii: Vec<f64>,
     blocks: JointBlocks,
+    /// Per constraint, whether its group was handed to Gauss-Seidel (its active sets
+    /// cycled; see [`JointBlocks::relax_cycled`]). Kept by constraint, not by group, so that
+    /// groups made again, or a restored snapshot, see the same.
+    relaxed_joints: Vec<bool>,
     islands: sleep::Islands,
     /// The settings of the last step: a change wakes every sleeping body.
     last_settings: Option<crate::sim::Settings>,
@@ -179,6 +183,7 @@ pub struct Carried {
     last_settings: Option<crate::sim::Settings>,
     last_substep: f64,
     joint_boost: u32,
+    relaxed_joints: Vec<bool>,
 }
 
 impl Carried {
@@ -187,6 +192,7 @@ impl Carried {
             + self.joint_impulses.capacity() * 8
             + self.joint_sides.heap_bytes()
             + self.pair_states.heap_bytes()
+            + self.relaxed_joints.capacity()
     }
 }
 
@@ -338,6 +344,7 @@ impl SoftStep {
             last_settings: self.last_settings.clone(),
             last_substep: self.last_substep,
             joint_boost: self.joint_boost,
+            relaxed_joints: self.relaxed_joints.clone(),
         }
     }
 
@@ -349,6 +356,7 @@ impl SoftStep {
         self.last_settings.clone_from(&carried.last_settings);
         self.last_substep = carried.last_substep;
         self.joint_boost = carried.joint_boost;
+        self.relaxed_joints.clone_from(&carried.relaxed_joints);
     }
 
     /// One step: collide, then solve in substeps.
@@ -619,10 +627,12 @@ impl SoftStep {
             &substeps.contact,
             (&mut work.contacts, &mut work.points),
         );
-        if !self.blocks.fits(constraints, bodies) {
+        let made = !self.blocks.fits(constraints, bodies);
+        if made {
             self.blocks = JointBlocks::new(constraints, bodies);
-            work.large_groups = self.blocks.large_group_constraints();
-        } else if self.blocks.take_relaxed() {
+        }
+        self.relaxed_joints.resize(constraints.len(), false);
+        if self.blocks.relax_cycled(&mut self.relaxed_joints) || made {
             work.large_groups = self.blocks.large_group_constraints();
         }
         work.rows.clear();
