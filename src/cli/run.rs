@@ -48,6 +48,8 @@ pub struct RunSummary {
     pub budget_hits: u64,
     /// Soft step: joint groups left out of bounds by their projections (see `StepStats`).
     pub joint_projections_cut_short: usize,
+    /// Soft step: joint groups solved by Gauss-Seidel at the end (see `StepStats`).
+    pub joint_groups_relaxed: usize,
     pub energy_start: f64,
     /// Energy of the bodies still moving at the end.
     pub energy_end: f64,
@@ -178,6 +180,7 @@ impl RunSummary {
             constraint_visits: 0,
             budget_hits: 0,
             joint_projections_cut_short: 0,
+            joint_groups_relaxed: 0,
             energy_start,
             energy_end: energy_start,
             energy_frozen: 0.0,
@@ -205,6 +208,7 @@ impl RunSummary {
         self.stage_ms.add(&stats.timings);
         self.quarantined.extend(stats.quarantined);
         self.asleep_at_end = stats.asleep;
+        self.joint_groups_relaxed = stats.joint_groups_relaxed;
         self.substeps_taken += stats.substeps as u64;
         if !world.constraints.is_empty() {
             self.max_constraint_violation = self
@@ -281,6 +285,12 @@ fn print_summary(s: &RunSummary) {
         s.energy_end,
         100.0 * (s.energy_end - s.energy_start) / s.energy_start.abs().max(1e-300)
     );
+    if s.joint_groups_relaxed > 0 {
+        println!(
+            "joint groups over-braced (rods that depend on each other): {} solved by Gauss-Seidel, held within a few percent",
+            s.joint_groups_relaxed
+        );
+    }
     if s.asleep_at_end > 0 {
         println!(
             "asleep at the end: {} of {} bodies",

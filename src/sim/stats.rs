@@ -279,6 +279,10 @@ pub struct StepStats {
     /// outside its bounds (by more than 1e-6 of the bound): the step could not hold them, and
     /// more substeps are the remedy.
     pub joint_projections_cut_short: usize,
+    /// Soft step: joint groups handed to Gauss-Seidel because their rows depend on each other
+    /// (an over-braced truss whose active sets cycled), at the end of the step: held within
+    /// a few percent rather than to rounding.
+    pub joint_groups_relaxed: usize,
     /// Bodies asleep at the end of the step (soft-step solver).
     pub asleep: usize,
     /// Substeps the step took: the setting's count, or for the soft step more where it begins
@@ -304,6 +308,7 @@ impl StepStats {
         self.constraint_corrections += other.constraint_corrections;
         self.budget_hit |= other.budget_hit;
         self.joint_projections_cut_short += other.joint_projections_cut_short;
+        self.joint_groups_relaxed = other.joint_groups_relaxed;
         self.asleep = other.asleep;
         self.substeps += other.substeps;
         self.quarantined.extend(other.quarantined);

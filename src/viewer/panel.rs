@@ -673,6 +673,11 @@ fn constraint_rows(ui: &mut egui::Ui, solver: Solver, last: &crate::StepStats) {
                 alarm(&format!("{n} not held (raise substeps)")),
             ),
         }
+        if last.joint_groups_relaxed > 0 {
+            let n = last.joint_groups_relaxed;
+            let text = format!("{n} over-braced: Gauss-Seidel, within a few %");
+            stat(ui, "joint solve", alarm(&text));
+        }
         return;
     }
     stat(

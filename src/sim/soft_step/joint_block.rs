@@ -762,6 +762,11 @@ impl JointBlocks {
         moved
     }
 
+    /// Groups handed to Gauss-Seidel ([`JointBlocks::relax_cycled`]).
+    pub fn relaxed_groups(&self) -> usize {
+        self.groups.iter().filter(|g| g.relaxed).count()
+    }
+
     /// Between steps (within a step the rows of [`JointBlocks::large_group_constraints`] are
     /// fixed): marks the constraints of the groups whose active sets cycled in `relaxed` (per
     /// world constraint), then hands each group with a marked constraint to Gauss-Seidel;

@@ -413,6 +413,7 @@ impl SoftStep {
         }
         watch.enter(Stage::SolveFinish);
         stats.joint_projections_cut_short = self.blocks.take_cut_short();
+        stats.joint_groups_relaxed = self.blocks.relaxed_groups();
         if stats.joint_projections_cut_short > 0 {
             self.joint_boost = (self.joint_boost + 1).min(MAX_JOINT_BOOST);
         }
