@@ -113,6 +113,62 @@ fn angular_momentum_integrator_turns_a_symmetric_body_at_constant_spin() {
     assert_vec_close(momentum(&e), l0, 1e-9, "angular momentum");
 }
 
+/// A free bar of 2 x 0.4 x 0.4 spun at 24 rad/s about no principal axis, under the
+/// angular-momentum integrator (steps of `dt` for `seconds`): its rotational energy and world
+/// angular momentum at the end against their start, and its orientation.
+fn spin_bar(dt: f64, seconds: f64) -> (f64, f64, DQuat) {
+    let settings = Settings {
+        gravity: DVec3::ZERO,
+        rotation_integrator: tumble::sim::settings::RotationIntegrator::AngularMomentum,
+        ..Settings::default()
+    };
+    let s = shape(&assets::cuboid(DVec3::new(1.0, 0.2, 0.2)));
+    let tilt = DQuat::from_rotation_z(0.3) * DQuat::from_rotation_x(0.7);
+    let mut b = RigidBody::on_shape(&s, 0, 380.0, false, DVec3::ZERO, tilt);
+    b.angular_velocity = 24.0 * DVec3::new(0.6, 0.3, 0.74).normalize();
+    let energy = |b: &RigidBody| {
+        0.5 * b
+            .angular_velocity
+            .dot(b.world_inertia() * b.angular_velocity)
+    };
+    let momentum = |b: &RigidBody| b.world_inertia() * b.angular_velocity;
+    let (e0, l0) = (energy(&b), momentum(&b));
+    for _ in 0..(seconds / dt).round() as usize {
+        integrate_body(&mut b, &settings, dt);
+    }
+    let drift = |a: f64, b: f64| (a - b).abs() / b;
+    (
+        drift(energy(&b), e0),
+        (momentum(&b) - l0).length() / l0.length(),
+        b.orientation,
+    )
+}
+
+/// Torque-free, the energy and the world angular momentum are invariants: the integrator
+/// keeps both to rounding however far the bar turns in a step (a radian at dt 0.04). The
+/// explicit midpoint rule it replaced kept L but let the bar drift towards turning about its
+/// long axis: 3.6 times its energy in 20 s at dt 0.04 here, 12 times in the soft step's free
+/// flight (four substeps; measured). And it is of second order: halving the
+/// step quarters the orientation's error after 2 s (against steps of 1/1600 s).
+#[test]
+fn angular_momentum_integrator_keeps_a_free_bars_energy() {
+    for dt in [0.04, 0.01] {
+        let (energy, momentum, _) = spin_bar(dt, 20.0);
+        assert!(energy < 1e-9, "dt {dt}: energy drifted by {energy}");
+        assert!(momentum < 1e-9, "dt {dt}: momentum drifted by {momentum}");
+    }
+    let (.., reference) = spin_bar(1.0 / 1600.0, 2.0);
+    let error = |dt: f64| {
+        let (.., q) = spin_bar(dt, 2.0);
+        2.0 * q.dot(reference).abs().min(1.0).acos()
+    };
+    let ratio = error(0.01) / error(0.005);
+    assert!(
+        (3.5..4.5).contains(&ratio),
+        "error ratio {ratio} for half the step"
+    );
+}
+
 #[test]
 fn fixed_bodies_are_not_integrated() {
     let s = shape(&assets::cuboid(DVec3::ONE));

@@ -4,7 +4,6 @@
 use crate::sim::body::RigidBody;
 use crate::sim::parallel;
 use crate::sim::settings::{RotationIntegrator, Settings};
-use crate::sim::sym_mat3::SymMat3;
 use glam::{DMat3, DQuat, DVec3};
 use rayon::prelude::*;
 
@@ -51,18 +50,78 @@ pub fn integrate_pose(
         RotationIntegrator::AngularMomentum if body.inertia.is_isotropic() => {
             body.orientation = turn_by(body.orientation, body.angular_velocity, dt);
         }
-        RotationIntegrator::AngularMomentum => {
-            // Torque-free: world angular momentum L is constant over the step. Rotate by the
-            // angular velocity at the half-step orientation (explicit midpoint, second order),
-            // then read the new angular velocity off L: |L| and L are kept exactly.
-            let q = body.orientation;
-            let momentum = tensor_at(body.inertia, q, body.angular_velocity);
-            let half = turn_by(q, body.angular_velocity, 0.5 * dt);
-            let w_half = inverse_inertia_at(body, half, momentum);
-            body.orientation = turn_by(q, w_half, dt);
-            body.angular_velocity = inverse_inertia_at(body, body.orientation, momentum);
-        }
+        RotationIntegrator::AngularMomentum => free_rotation(body, dt),
     }
+}
+
+/// Newton iterations of [`midpoint_spin`] at most (two to four reach rounding at a turn of a
+/// radian a step).
+const MIDPOINT_ITERATIONS: usize = 12;
+
+/// The torque-free turn of a body over `dt`: the implicit midpoint rule on Euler's equations
+/// in body frame, `Pi' = Pi x w` with `Pi = I w`, which keeps both of their quadratic
+/// invariants, the energy `Pi . w / 2` and `|Pi|`, exactly (Austin, Krishnaprasad and Wang,
+/// "Almost Poisson integration of rigid body systems", J. Comput. Phys. 1993), second order;
+/// and the body turned by the Cayley rotation that carries the new `Pi` onto the old in world
+/// frame, so that the world angular momentum is kept exactly too. Until stop 54 the turn was the
+/// explicit midpoint rule, which kept L but not the energy: a free bar of 2 x 0.4 x 0.4 spun at
+/// 24 rad/s drifted to turning about its long axis with 12 times its energy in 20 s at dt 0.04.
+fn free_rotation(body: &mut RigidBody, dt: f64) {
+    let q = body.orientation;
+    let (inertia, inverse) = (body.inertia.to_mat3(), body.inverse_inertia.to_mat3());
+    // Rotated by the matrix rather than the quaternion there and back: a third cheaper.
+    let spin = DMat3::from_quat(q).transpose() * body.angular_velocity;
+    let momentum = inertia * spin;
+    let mid = midpoint_spin(inertia, momentum, spin, dt);
+    // `Pi_1 = 2 Pi_mid - Pi_0`: `Pi_mid = (Pi_0 + Pi_1) / 2` by the rule.
+    let next = 2.0 * (inertia * mid) - momentum;
+    body.orientation = cayley_turn(q, mid, dt);
+    body.angular_velocity = DMat3::from_quat(body.orientation) * (inverse * next);
+}
+
+/// The body-frame angular velocity at the step's midpoint: the root of
+/// `F(w) = I w + dt/2 w x I w - Pi_0` (the implicit midpoint rule's `Pi_mid = Pi_0 - dt/2 w x
+/// Pi_mid`), by Newton's method from `start`, with `F'(w) = I + dt/2 ([w]x I - [I w]x)`.
+fn midpoint_spin(inertia: DMat3, momentum: DVec3, start: DVec3, dt: f64) -> DVec3 {
+    let h = 0.5 * dt;
+    let tolerance = 1e-15 * momentum.length();
+    let mut w = start;
+    for _ in 0..MIDPOINT_ITERATIONS {
+        let iw = inertia * w;
+        let residual = iw + h * w.cross(iw) - momentum;
+        if residual.length() <= tolerance {
+            break;
+        }
+        let jacobian = inertia + h * (cross_matrix(w) * inertia - cross_matrix(iw));
+        let step = jacobian.inverse() * residual;
+        if !step.is_finite() {
+            break;
+        }
+        w -= step;
+    }
+    w
+}
+
+/// `[v]x`: the matrix of `u -> v x u`.
+fn cross_matrix(v: DVec3) -> DMat3 {
+    DMat3::from_cols(
+        DVec3::new(0.0, v.z, -v.y),
+        DVec3::new(-v.z, 0.0, v.x),
+        DVec3::new(v.y, -v.x, 0.0),
+    )
+}
+
+/// `q` turned in body frame by the Cayley transform `(1 + A)(1 - A)^-1` of `A = [dt/2 w]x`:
+/// a rotation about `w` by `2 atan(|w| dt / 2)` (the exponential's `|w| dt` to third order).
+fn cayley_turn(q: DQuat, spin: DVec3, dt: f64) -> DQuat {
+    let half = 0.5 * dt * spin;
+    let t = half.length();
+    if t == 0.0 {
+        return q;
+    }
+    // The rotation's half-angle is atan(t): its quaternion is (1, half) / sqrt(1 + t^2).
+    let turn = DQuat::from_xyzw(half.x, half.y, half.z, 1.0) / (1.0 + t * t).sqrt();
+    (q * turn).normalize()
 }
 
 /// Half-angles below this are no rotation at all in the coursework's `QExp` (`nv < 10e-6`).
@@ -75,21 +134,6 @@ pub fn coursework_rotate_by(q: DQuat, angular_velocity: DVec3, dt: f64) -> DQuat
         return q;
     }
     rotate_by(q, angular_velocity, dt)
-}
-
-/// `I(q)^-1 v`: the world inverse inertia at orientation `q` applied to `v`.
-fn inverse_inertia_at(body: &RigidBody, q: DQuat, v: DVec3) -> DVec3 {
-    tensor_at(body.inverse_inertia, q, v)
-}
-
-/// `R T R^T v` for the body-frame tensor `T` at orientation `q` (`R` its matrix), applied in
-/// body frame without forming the world tensor: the matrix and three products by it cost
-/// a third less than rotating `v` by the quaternion there and back.
-#[inline]
-fn tensor_at(tensor: SymMat3, q: DQuat, v: DVec3) -> DVec3 {
-    let r = DMat3::from_quat(q);
-    let in_body = DVec3::new(r.x_axis.dot(v), r.y_axis.dot(v), r.z_axis.dot(v));
-    r * (tensor.to_mat3() * in_body)
 }
 
 /// `normalise(exp((0, dt/2 w)) q)` with `exp((0, theta u)) = (cos theta, sin theta u)`:
