@@ -157,7 +157,7 @@ pub struct JointBlocks {
     /// last [`JointBlocks::take_cut_short`].
     cut_short: usize,
     /// Per group, whether a solve's active sets cycled since the last
-    /// [`JointBlocks::take_relaxed`].
+    /// [`JointBlocks::take_cycled`].
     cycled: Vec<bool>,
     /// Which of each constraint's two bodies moved (`is_dynamic`) when the groups were made:
     /// they decide the groups.
@@ -762,28 +762,40 @@ impl JointBlocks {
         moved
     }
 
-    /// Groups handed to Gauss-Seidel ([`JointBlocks::relax_cycled`]).
+    /// Groups handed to Gauss-Seidel ([`JointBlocks::relax_marked`]).
     pub fn relaxed_groups(&self) -> usize {
         self.groups.iter().filter(|g| g.relaxed).count()
     }
 
-    /// Between steps (within a step the rows of [`JointBlocks::large_group_constraints`] are
-    /// fixed): marks the constraints of the groups whose active sets cycled in `relaxed` (per
-    /// world constraint), then hands each group with a marked constraint to Gauss-Seidel;
-    /// true if a group's solver changed.
-    pub fn relax_cycled(&mut self, relaxed: &mut [bool]) -> bool {
-        let mut changed = false;
-        for (g, cycled) in self.groups.iter_mut().zip(&mut self.cycled) {
-            let constraints =
-                |r: &DistanceRecord| r.first_constraint..r.first_constraint + r.constraint_count;
-            let records = &self.records[g.records.clone()];
+    /// At the end of a step: marks in `relaxed` (per world constraint) the constraints of the
+    /// groups whose active sets cycled in it, so that the state between steps holds them.
+    pub fn take_cycled(&mut self, relaxed: &mut [bool]) {
+        for (g, cycled) in self.groups.iter().zip(&mut self.cycled) {
             if std::mem::take(cycled) {
-                records
-                    .iter()
-                    .flat_map(constraints)
-                    .for_each(|c| relaxed[c] = true);
+                let records = &self.records[g.records.clone()];
+                for r in records {
+                    let range = r.first_constraint..r.first_constraint + r.constraint_count;
+                    if let Some(flags) = relaxed.get_mut(range) {
+                        flags.fill(true);
+                    }
+                }
             }
-            let now = records.iter().flat_map(constraints).any(|c| relaxed[c]);
+        }
+    }
+
+    /// Before a step's solve (within a step the rows of
+    /// [`JointBlocks::large_group_constraints`] are fixed): hands each group with a constraint
+    /// marked in `relaxed` to Gauss-Seidel; true if a group's solver changed.
+    pub fn relax_marked(&mut self, relaxed: &[bool]) -> bool {
+        let mut changed = false;
+        for g in &mut self.groups {
+            let records = &self.records[g.records.clone()];
+            let now = records.iter().any(|r| {
+                let range = r.first_constraint..r.first_constraint + r.constraint_count;
+                relaxed
+                    .get(range)
+                    .is_some_and(|flags| flags.contains(&true))
+            });
             changed |= now != g.relaxed;
             g.relaxed = now;
         }

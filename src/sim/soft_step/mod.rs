@@ -93,7 +93,7 @@ pub struct SoftStep {
     radii: Vec<f64>,
     blocks: JointBlocks,
     /// Per constraint, whether its group was handed to Gauss-Seidel (its active sets
-    /// cycled; see [`JointBlocks::relax_cycled`]). Kept by constraint, not by group, so that
+    /// cycled; see [`JointBlocks::take_cycled`]). Kept by constraint, not by group, so that
     /// groups made again, or a restored snapshot, see the same.
     relaxed_joints: Vec<bool>,
     islands: sleep::Islands,
@@ -418,6 +418,7 @@ impl SoftStep {
             self.joint_boost = (self.joint_boost + 1).min(MAX_JOINT_BOOST);
         }
         self.finish(ctx, (scene.bodies, scene.constraints, scene.start), stats);
+        self.blocks.take_cycled(&mut self.relaxed_joints);
     }
 
     /// The solved bodies' substeps between the half kicks, then the final pass.
@@ -633,7 +634,7 @@ impl SoftStep {
             self.blocks = JointBlocks::new(constraints, bodies);
         }
         self.relaxed_joints.resize(constraints.len(), false);
-        if self.blocks.relax_cycled(&mut self.relaxed_joints) || made {
+        if self.blocks.relax_marked(&self.relaxed_joints) || made {
             work.large_groups = self.blocks.large_group_constraints();
         }
         work.rows.clear();
