@@ -94,8 +94,9 @@ pub fn principal(
 /// Computations", 4.1.2) row by row: `L`'s entries left of the diagonal (its diagonal is one)
 /// and `D` on the diagonal, and `inverse_diagonal` with `D`'s reciprocals; false if `K` is not
 /// positive definite, or so nearly singular in this order that a pivot is under
-/// [`WELL_CONDITIONED`] of its diagonal. Against Cholesky's `L L^T` a row costs one division and no square root,
-/// and each row waits on the one before it (a chain's system is tridiagonal).
+/// [`WELL_CONDITIONED`] of its diagonal. Against Cholesky's `L L^T` a row costs one division
+/// and no square root, and each row waits on the one before it (a chain's system is
+/// tridiagonal).
 pub fn ldl_factor(rows: &[Row], values: &mut [f64], inverse_diagonal: &mut Vec<f64>) -> bool {
     let n = rows.len();
     inverse_diagonal.clear();
