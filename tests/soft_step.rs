@@ -440,6 +440,105 @@ fn an_over_braced_truss_with_slack_rods_lands_without_gaining_energy() {
     }
 }
 
+/// A random scene of 2 to 13 boxes of three shapes, spinning and moving at random, one perhaps
+/// fixed, with rods between random corners of random pairs, and its own dt (0.01 to 0.04),
+/// restitution (0, 0.5 or 1) and friction (0 or 0.5): the probe that found the rotation rule's
+/// energy drift and the bounces' energy rule across direct joints, seed for seed.
+fn random_jointed_scene(seed: u64) -> World {
+    let mut rng = tumble::sim::rng::Rng::new(seed);
+    let sizes = [
+        DVec3::new(0.5, 0.3, 0.4),
+        DVec3::new(1.0, 0.2, 0.2),
+        DVec3::splat(0.5),
+    ];
+    let shapes: Vec<Shape> = sizes
+        .map(|h| Shape::from_tet_mesh(&assets::cuboid(h)).unwrap())
+        .into();
+    let n = 2 + (rng.next_u64() % 12) as usize;
+    let dt = [0.04, 0.02, 0.01][(rng.next_u64() % 3) as usize];
+    let restitution = [0.0, 0.5, 1.0][(rng.next_u64() % 3) as usize];
+    let friction = [0.0, 0.5][(rng.next_u64() % 2) as usize];
+    let mut random_vector = |rng: &mut tumble::sim::rng::Rng| {
+        DVec3::new(
+            rng.range(-5.0, 5.0),
+            rng.range(-5.0, 5.0),
+            rng.range(-5.0, 5.0),
+        )
+    };
+    let bodies: Vec<RigidBody> = (0..n)
+        .map(|k| {
+            let x = 3.0 * (k % 4) as f64 + rng.range(-0.3, 0.3);
+            let p = DVec3::new(x, 2.0 + 3.0 * (k / 4) as f64, rng.range(-0.5, 0.5));
+            let s = (rng.next_u64() % 3) as usize;
+            let density = rng.range(50.0, 2000.0);
+            let fixed = k == 0 && rng.unit() < 0.3;
+            let mut b = RigidBody::on_shape(&shapes[s], s, density, fixed, p, rng.tilt(3.0));
+            if !b.fixed {
+                b.linear_velocity = random_vector(&mut rng);
+                b.angular_velocity = random_vector(&mut rng);
+            }
+            b
+        })
+        .collect();
+    let mut constraints = Vec::new();
+    for _ in 0..(rng.next_u64() % n as u64) {
+        let (a, b) = (
+            (rng.next_u64() % n as u64) as usize,
+            (rng.next_u64() % n as u64) as usize,
+        );
+        if a == b {
+            continue;
+        }
+        let lower = [1.0, 0.8, 0.5][(rng.next_u64() % 3) as usize];
+        let upper = [1.0, 1.2][(rng.next_u64() % 2) as usize];
+        let (va, vb) = ((rng.next_u64() % 8) as usize, (rng.next_u64() % 8) as usize);
+        constraints.extend(
+            tumble::sim::constraint::DistanceConstraint::lower_and_upper(
+                &bodies,
+                &shapes,
+                (a, va),
+                (b, vb),
+                lower,
+                upper,
+            ),
+        );
+    }
+    let settings = Settings {
+        time_step: dt,
+        restitution,
+        friction,
+        ..Settings::accurate()
+    };
+    let names = vec!["a".into(), "b".into(), "c".into()];
+    World::new(shapes, names, bodies, constraints, settings)
+}
+
+#[test]
+fn elastic_bounces_of_jointed_boxes_gain_no_energy() {
+    // Three random scenes at e = 1 without friction where a box held by rods (solved directly)
+    // bounces: the energy rule of the bounces stretched the restitution impulses (up to twice)
+    // until the bouncing bodies had back the energy the impact took, which the rods had passed
+    // on to bodies outside the group: 1.8, 154 and 9.5 times the scenes' energy in 10 s
+    // (measured before). Groups with a jointed body now get at most their impulses, and the
+    // cap on what bounces add joins the bodies the rods hold too. (Another scene of the probe,
+    // seed 447, still gains 14 times its energy: noted.)
+    for seed in [93, 234, 287] {
+        let mut world = random_jointed_scene(seed);
+        assert_eq!(world.settings.restitution, 1.0);
+        assert_eq!(world.settings.friction, 0.0);
+        let e0 = world.total_energy();
+        let mut highest: f64 = 1.0;
+        for _ in 0..(10.0 / world.settings.time_step) as usize {
+            world.step();
+            highest = highest.max(world.total_energy() / e0);
+        }
+        assert!(
+            highest < 1.01,
+            "seed {seed}: energy rose to {highest} of its start"
+        );
+    }
+}
+
 #[test]
 fn a_long_rope_stays_within_its_bounds() {
     // 150 links swinging down from the horizontal for 8 s, the free end falling freely and

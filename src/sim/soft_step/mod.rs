@@ -771,7 +771,7 @@ impl SoftStep {
             constraints: &w.contacts,
             points: &w.points,
             bouncing: &bouncing,
-            rows: &w.rows,
+            joints: constraints,
         };
         restitution::settle_energy(
             &contacts,
