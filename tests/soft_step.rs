@@ -458,7 +458,7 @@ fn random_jointed_scene(seed: u64) -> World {
     let dt = [0.04, 0.02, 0.01][(rng.next_u64() % 3) as usize];
     let restitution = [0.0, 0.5, 1.0][(rng.next_u64() % 3) as usize];
     let friction = [0.0, 0.5][(rng.next_u64() % 2) as usize];
-    let mut random_vector = |rng: &mut tumble::sim::rng::Rng| {
+    let random_vector = |rng: &mut tumble::sim::rng::Rng| {
         DVec3::new(
             rng.range(-5.0, 5.0),
             rng.range(-5.0, 5.0),
