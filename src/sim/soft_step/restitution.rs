@@ -116,9 +116,9 @@ pub struct EnergyRule {
 /// friction gained up to 154 times their energy in 10 s (tested).
 ///
 /// Then the same cap, scaling down only, over each such group with the bodies its bouncing
-/// bodies pushed or pulled this step, or hold by a distance constraint ([`joined_groups`];
-/// until stop 54 only by the constraints solved as Gauss-Seidel rows, not the direct groups):
-/// a body that bounces while it pushes a
+/// bodies pushed or pulled this step or are joined to by a distance constraint
+/// ([`joined_groups`]; until stop 54 only by those solved as Gauss-Seidel rows, not by the
+/// direct groups): a body that bounces while it pushes a
 /// neighbour has handed that neighbour energy in the substeps, which its own account alone
 /// would let the bounce give back (a box bouncing at e = 1 while it pushed another gained the
 /// mixed scene 1.9e-4 of its energy in one step at dt 0.04; 6.1e-6 with this cap). Only the
@@ -140,14 +140,13 @@ pub fn settle_energy(
     if groups.is_empty() {
         return;
     }
-    let mut jointed = vec![
-        false;
-        if contacts.joints.is_empty() {
-            0
-        } else {
-            poses.len()
-        }
-    ];
+    // Which bodies a distance constraint holds (none to mark in most scenes).
+    let marked = if contacts.joints.is_empty() {
+        0
+    } else {
+        poses.len()
+    };
+    let mut jointed = vec![false; marked];
     for c in contacts.joints {
         (jointed[c.body1], jointed[c.body2]) = (true, true);
     }
