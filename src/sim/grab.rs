@@ -38,11 +38,7 @@ impl Grab {
         let velocity = linear + angular.cross(r);
         // Critically damped; no faster than the step can follow.
         let soft = Softness::new(self.hertz.min(0.25 / h), 1.0, h);
-        let skew = DMat3::from_cols(
-            DVec3::new(0.0, r.z, -r.y),
-            DVec3::new(-r.z, 0.0, r.x),
-            DVec3::new(r.y, -r.x, 0.0),
-        );
+        let skew = crate::sim::integrate::skew(r);
         let k = DMat3::from_diagonal(DVec3::splat(body.inverse_mass))
             + skew.transpose() * body.world_inverse_inertia() * skew;
         if k.determinant().abs() < 1e-300 {

@@ -93,7 +93,7 @@ fn midpoint_spin(inertia: DMat3, momentum: DVec3, start: DVec3, dt: f64) -> DVec
         if residual.length() <= tolerance {
             break;
         }
-        let jacobian = inertia + h * (cross_matrix(w) * inertia - cross_matrix(iw));
+        let jacobian = euler_jacobian(inertia, w, h);
         let step = jacobian.inverse() * residual;
         if !step.is_finite() {
             break;
@@ -101,15 +101,6 @@ fn midpoint_spin(inertia: DMat3, momentum: DVec3, start: DVec3, dt: f64) -> DVec
         w -= step;
     }
     w
-}
-
-/// `[v]x`: the matrix of `u -> v x u`.
-fn cross_matrix(v: DVec3) -> DMat3 {
-    DMat3::from_cols(
-        DVec3::new(0.0, v.z, -v.y),
-        DVec3::new(-v.z, 0.0, v.x),
-        DVec3::new(v.y, -v.x, 0.0),
-    )
 }
 
 /// `q` turned in body frame by the Cayley transform `(1 + A)(1 - A)^-1` of `A = [dt/2 w]x`:
@@ -195,7 +186,7 @@ fn gyroscopic_step(body: &RigidBody, dt: f64) -> DVec3 {
     let inertia = body.inertia.to_mat3();
     let w0 = q.inverse() * body.angular_velocity;
     let f = dt * w0.cross(inertia * w0);
-    let jacobian = inertia + dt * (skew(w0) * inertia - skew(inertia * w0));
+    let jacobian = euler_jacobian(inertia, w0, dt);
     let det = jacobian.determinant();
     if !det.is_finite() || det.abs() < 1e-300 {
         return body.angular_velocity;
@@ -204,7 +195,15 @@ fn gyroscopic_step(body: &RigidBody, dt: f64) -> DVec3 {
     q * w
 }
 
-fn skew(v: DVec3) -> DMat3 {
+/// `I + h ([w]x I - [I w]x)`: the derivative of `I w + h w x I w` by `w`, which the implicit
+/// steps of Euler's equations solve by Newton's method (the gyroscopic step's one iteration,
+/// the midpoint rule's several).
+fn euler_jacobian(inertia: DMat3, w: DVec3, h: f64) -> DMat3 {
+    inertia + h * (skew(w) * inertia - skew(inertia * w))
+}
+
+/// `[v]x`: the matrix of `u -> v x u`.
+pub(crate) fn skew(v: DVec3) -> DMat3 {
     DMat3::from_cols(
         DVec3::new(0.0, v.z, -v.y),
         DVec3::new(-v.z, 0.0, v.x),

@@ -61,6 +61,13 @@ pub struct DistanceRecord {
     pub upper: f64,
 }
 
+impl DistanceRecord {
+    /// The world's inequality constraints this record stands for.
+    pub fn constraints(&self) -> Range<usize> {
+        self.first_constraint..self.first_constraint + self.constraint_count
+    }
+}
+
 /// Which side of its range a row is held on in one solve.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Side {
@@ -653,7 +660,7 @@ impl JointBlocks {
         for g in &self.groups {
             if !g.direct() {
                 for r in &self.records[g.records.clone()] {
-                    out.extend(r.first_constraint..r.first_constraint + r.constraint_count);
+                    out.extend(r.constraints());
                 }
             }
         }
@@ -774,8 +781,7 @@ impl JointBlocks {
             if std::mem::take(cycled) {
                 let records = &self.records[g.records.clone()];
                 for r in records {
-                    let range = r.first_constraint..r.first_constraint + r.constraint_count;
-                    if let Some(flags) = relaxed.get_mut(range) {
+                    if let Some(flags) = relaxed.get_mut(r.constraints()) {
                         flags.fill(true);
                     }
                 }
@@ -791,9 +797,8 @@ impl JointBlocks {
         for g in &mut self.groups {
             let records = &self.records[g.records.clone()];
             let now = records.iter().any(|r| {
-                let range = r.first_constraint..r.first_constraint + r.constraint_count;
                 relaxed
-                    .get(range)
+                    .get(r.constraints())
                     .is_some_and(|flags| flags.contains(&true))
             });
             changed |= now != g.relaxed;
