@@ -21,7 +21,10 @@ pub struct SolverBody {
     pub delta_position: DVec3,
     /// Rotation since the start of the step.
     pub delta_rotation: DQuat,
-    /// World inverse inertia at the start of the step.
+    /// World inverse inertia at the start of the step; in a step with distance constraints
+    /// or a grab, at the body's current orientation, turned with it after each substep's
+    /// drift (see `Workspace::integrate_positions`). The contact rows keep the responses
+    /// they were prepared with.
     pub inverse_inertia: DMat3,
 }
 
