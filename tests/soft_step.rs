@@ -541,8 +541,9 @@ fn elastic_bounces_of_jointed_boxes_gain_no_energy() {
 }
 
 /// A bar of 2 x 0.4 x 0.4 spinning at 10 rad/s, tethered by a rigid rod from its end to a
-/// heavier box's corner, in free flight (50 units above the ground) for 10 s at dt 0.04 with `substeps`: the highest energy
-/// and the largest drift of the angular momentum, relative to their start.
+/// heavier box's corner, in free flight (50 units above the ground) for 10 s at dt 0.04 with
+/// `substeps`: the highest energy and the largest drift of the angular momentum, relative to
+/// their start.
 fn tethered_spinning_bar(substeps: u32) -> (f64, f64) {
     let shapes: Vec<Shape> = [DVec3::new(1.0, 0.2, 0.2), DVec3::splat(0.5)]
         .map(|h| Shape::from_tet_mesh(&assets::cuboid(h)).unwrap())
@@ -589,11 +590,12 @@ fn tethered_spinning_bar(substeps: u32) -> (f64, f64) {
     (highest, drift)
 }
 
-/// The rod's impulses are internal: they keep the angular momentum and may take energy (the
-/// jerk of the rod going taut, the projections) but never add it. Applied through the world
-/// inverse inertia of the step's start to a bar that had turned by up to 0.4 rad since, they
-/// made 1.8 and 114 times the energy with four and sixteen substeps, and moved the angular
-/// momentum by 113 % and 1,000 % (measured); the solver bodies' inertia now turns with them.
+/// The rod's impulses are internal: they keep the angular momentum and may take energy (its
+/// position projections do, docs/accuracy.md "Pendulum") but never add it. Applied through
+/// the world inverse inertia of the step's start to a bar that had turned by up to 0.4 rad
+/// since, they made 1.8 and 114 times the energy with four and sixteen substeps, and moved the
+/// angular momentum by 113 % and 1,000 % (measured); the solver bodies' inertia now turns with
+/// them.
 #[test]
 fn a_spinning_bar_on_a_rod_gains_no_energy_and_keeps_its_angular_momentum() {
     for (substeps, momentum_bound) in [(4, 0.05), (16, 0.005)] {
