@@ -40,6 +40,17 @@ impl SymMat3 {
         self.off_diagonal == DVec3::ZERO && self.diagonal == DVec3::splat(self.diagonal.x)
     }
 
+    /// `M v`.
+    #[inline]
+    pub fn mul_vec3(&self, v: DVec3) -> DVec3 {
+        let (d, o) = (self.diagonal, self.off_diagonal);
+        DVec3::new(
+            d.x * v.x + o.x * v.y + o.y * v.z,
+            o.x * v.x + d.y * v.y + o.z * v.z,
+            o.y * v.x + o.z * v.y + d.z * v.z,
+        )
+    }
+
     pub fn is_finite(&self) -> bool {
         self.diagonal.is_finite() && self.off_diagonal.is_finite()
     }
@@ -56,6 +67,8 @@ mod tests {
             DVec3::new(0.3, 1.75, 0.11),
             DVec3::new(-0.7, 0.11, 3.2),
         );
+        let v = DVec3::new(0.4, -1.3, 2.2);
+        assert!((SymMat3::from_mat3(m).mul_vec3(v) - m * v).length() < 1e-15);
         for m in [m, m.inverse(), DMat3::IDENTITY * 7.0] {
             assert_eq!(SymMat3::from_mat3(m).to_mat3(), m);
         }
