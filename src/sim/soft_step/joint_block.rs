@@ -141,6 +141,8 @@ pub struct Group {
     /// Left to Gauss-Seidel since its active sets cycled on rows that depend on each other
     /// ([`Scratch::active_set_rounds`]).
     relaxed: bool,
+    /// Whether a record is a rigid rod (equal bounds), whose drift the soft pass anticipates.
+    rods: bool,
 }
 
 impl Group {
@@ -272,6 +274,7 @@ impl JointBlocks {
             couplings: first..self.couplings.len(),
             envelope,
             relaxed: false,
+            rods: group_records.iter().any(|r| r.lower == r.upper),
         });
     }
 
@@ -498,13 +501,7 @@ fn coupling(
 
 impl Scratch {
     fn reset(&mut self, n: usize, envelope: usize) {
-        for v in [
-            &mut self.u,
-            &mut self.lo,
-            &mut self.hi,
-            &mut self.lambda,
-            &mut self.ahead,
-        ] {
+        for v in [&mut self.u, &mut self.lo, &mut self.hi, &mut self.lambda] {
             v.clear();
             v.resize(n, 0.0);
         }
@@ -826,6 +823,7 @@ impl JointBlocks {
             envelope: g.envelope,
             held: &held,
             first: g.records.start,
+            rods: g.rods,
         };
         let direct = |(_, g): &(usize, &Group)| g.direct();
         // Whether a pose moved, and the projections cut short.
@@ -911,6 +909,7 @@ struct GroupView<'a> {
     /// The active sets of the last solves, by record of the world, and the group's first.
     held: &'a Shared<'a, Side>,
     first: usize,
+    rods: bool,
 }
 
 impl Scratch {
@@ -935,22 +934,25 @@ impl Scratch {
         if !self.set_up(group, |i| &poses[i], &inverse) {
             return;
         }
+        let anticipating = push.is_some() && group.rods;
+        if anticipating {
+            self.ahead.clear();
+            self.ahead.resize(records.len(), 0.0);
+        }
         for (i, (r, g)) in records.iter().zip(&self.geometries).enumerate() {
             // SAFETY: the group's bodies (caller's contract).
             let (b1, b2) = unsafe { (bodies.get(r.body1), bodies.get(r.body2)) };
             let relative = b2.point_velocity(g.r2) - b1.point_velocity(g.r1);
             self.u[i] = g.axis.dot(relative);
-            let ahead = if push.is_some() && r.lower == r.upper {
-                drift_lengthening(
+            if anticipating && r.lower == r.upper {
+                self.ahead[i] = drift_lengthening(
                     g,
                     relative,
                     (&poses[r.body1], b1),
                     (&poses[r.body2], b2),
                     inv_h,
-                )
-            } else {
-                0.0
-            };
+                );
+            }
             let allowed = |gap: f64| match push {
                 _ if gap > 0.0 => gap * inv_h,
                 Some(cap) => (gap * inv_h).max(-cap),
@@ -962,14 +964,15 @@ impl Scratch {
             } else {
                 (-allowed(g.length - r.lower), allowed(r.upper - g.length))
             };
-            self.lo[i] -= ahead;
-            self.hi[i] -= ahead;
-            self.ahead[i] = ahead;
+            if anticipating {
+                self.lo[i] -= self.ahead[i];
+                self.hi[i] -= self.ahead[i];
+            }
         }
         if self.solve_ranges(group) {
             // SAFETY: as above.
             unsafe { self.apply(records, bodies) };
-            if self.ahead.iter().any(|&a| a != 0.0) {
+            if anticipating && self.ahead.iter().any(|&a| a != 0.0) {
                 // SAFETY: as above.
                 unsafe { self.anticipate_again(group, poses, bodies, inv_h) };
             }
@@ -978,9 +981,9 @@ impl Scratch {
 
     /// The rods' drift anticipated again from the solved velocities, and the held rows'
     /// impulses corrected by the difference through the factors of their last solve (one more
-    /// substitution, no new factors). Anticipated from the velocities before the solve alone,
-    /// a box hung by a corner gained 27 % of its swing in 300 s at dt 0.04; corrected, 3.3 %
-    /// (measured).
+    /// substitution, no new factors). Anticipated in full at any turn from the velocities
+    /// before the solve alone, a box hung by a corner gained 27 % of its swing in 300 s at
+    /// dt 0.04; corrected, 3.3 % (measured).
     ///
     /// # Safety
     /// As [`Scratch::solve_group_velocities`].
