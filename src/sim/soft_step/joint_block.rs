@@ -460,6 +460,31 @@ fn drift_lengthening(
     weight * 0.5 / inv_h * (g.axis.dot(a) + across / g.length)
 }
 
+/// Record `r`'s rate at geometry `g` (its points' relative velocity along the axis), and, when
+/// `anticipate`, for a rigid rod the rate its drift will add ([`drift_lengthening`]; else
+/// zero).
+///
+/// # Safety
+/// No other thread writes the record's bodies meanwhile.
+#[inline(always)]
+unsafe fn rate_and_drift(
+    (r, g): (&DistanceRecord, &Geometry),
+    poses: &[RigidBody],
+    bodies: &Shared<SolverBody>,
+    (inv_h, anticipate): (f64, bool),
+) -> (f64, f64) {
+    // SAFETY: the caller's contract.
+    let (b1, b2) = unsafe { (bodies.get(r.body1), bodies.get(r.body2)) };
+    let relative = b2.point_velocity(g.r2) - b1.point_velocity(g.r1);
+    let ahead = if anticipate && r.lower == r.upper {
+        let ends = ((&poses[r.body1], b1), (&poses[r.body2], b2));
+        drift_lengthening(g, relative, ends.0, ends.1, inv_h)
+    } else {
+        0.0
+    };
+    (g.axis.dot(relative), ahead)
+}
+
 /// The row's Jacobian at geometry `g`; `inverse(b)` is body b's inverse mass and world inverse
 /// inertia.
 #[inline(always)]
@@ -941,17 +966,11 @@ impl Scratch {
         }
         for (i, (r, g)) in records.iter().zip(&self.geometries).enumerate() {
             // SAFETY: the group's bodies (caller's contract).
-            let (b1, b2) = unsafe { (bodies.get(r.body1), bodies.get(r.body2)) };
-            let relative = b2.point_velocity(g.r2) - b1.point_velocity(g.r1);
-            self.u[i] = g.axis.dot(relative);
-            if anticipating && r.lower == r.upper {
-                self.ahead[i] = drift_lengthening(
-                    g,
-                    relative,
-                    (&poses[r.body1], b1),
-                    (&poses[r.body2], b2),
-                    inv_h,
-                );
+            let (rate, ahead) =
+                unsafe { rate_and_drift((r, g), poses, bodies, (inv_h, anticipating)) };
+            self.u[i] = rate;
+            if anticipating {
+                self.ahead[i] = ahead;
             }
             let allowed = |gap: f64| match push {
                 _ if gap > 0.0 => gap * inv_h,
@@ -1006,21 +1025,15 @@ impl Scratch {
             self.active.push(0);
         }
         for &i in &self.active {
-            let (r, g) = (&records[i], &self.geometries[i]);
-            if r.lower != r.upper {
-                self.x.push(0.0);
-                continue;
-            }
             // SAFETY: the group's bodies (caller's contract).
-            let (b1, b2) = unsafe { (bodies.get(r.body1), bodies.get(r.body2)) };
-            let relative = b2.point_velocity(g.r2) - b1.point_velocity(g.r1);
-            let ahead = drift_lengthening(
-                g,
-                relative,
-                (&poses[r.body1], b1),
-                (&poses[r.body2], b2),
-                inv_h,
-            );
+            let (_, ahead) = unsafe {
+                rate_and_drift(
+                    (&records[i], &self.geometries[i]),
+                    poses,
+                    bodies,
+                    (inv_h, true),
+                )
+            };
             self.x.push(self.ahead[i] - ahead);
         }
         if single_held {
