@@ -284,7 +284,7 @@ fn pendulum_keeps_its_amplitude_and_period() {
 /// targets anticipate the drift's lengthening, docs/accuracy.md "A body that turns as it
 /// swings"), the change shrinking with the step. Projected back instead, the rod took 48 % of
 /// the swing's energy in 20 s at dt 0.04, 33 % at 0.02 and 6.1 % at 0.0025; anticipated, 9.9 %
-/// (the box turns faster than the anticipation's full range then), 0.21 % and 0.0034 %
+/// (the box turns faster than the anticipation's full range then), 0.20 % and 0.0034 %
 /// (measured).
 #[test]
 fn a_box_hung_by_a_corner_keeps_its_energy() {

@@ -396,8 +396,8 @@ fn geometry(r: &DistanceRecord, a: &RigidBody, b: &RigidBody) -> Option<Geometry
 /// turn) with the drift's lengthening anticipated in full ([`drift_lengthening`]); from there
 /// to twice it, less, and past that not at all. The second-order expansion overshoots as the
 /// turn grows: a bar spinning at 20-50 rad/s on a rod in zero gravity (dt 0.04, four to
-/// sixteen substeps) gained up to 0.6 % of its energy with all of it anticipated up to
-/// 0.15 rad, and 0.08 % (one case) up to 0.1 (measured, 10 s).
+/// sixteen substeps, 10 s) gained up to 4 % of its energy anticipated in full at any turn,
+/// 0.6 % with this limit at 0.15 rad, and 0.08 % (one case of 21) at 0.1 (measured).
 const ANTICIPATED_TURN: f64 = 0.1;
 
 /// The rate at which a substep's drift (constant velocities, torque-free spin) lengthens a row
