@@ -395,9 +395,10 @@ fn geometry(r: &DistanceRecord, a: &RigidBody, b: &RigidBody) -> Option<Geometry
 /// How far a row's ends may turn in a substep (radians, the faster end's spin or the row's own
 /// turn) with the drift's lengthening anticipated in full ([`drift_lengthening`]); from there
 /// to twice it, less, and past that not at all. The second-order expansion overshoots as the
-/// turn grows: a bar spinning at 20-50 rad/s on a rod in zero gravity (dt 0.04, four to
-/// sixteen substeps, 10 s) gained up to 4 % of its energy anticipated in full at any turn,
-/// 0.6 % with this limit at 0.15 rad, and 0.08 % (one case of 21) at 0.1 (measured).
+/// turn grows: a bar spinning on a rod in zero gravity (dt 0.04, four to sixteen substeps,
+/// 10 s) gained up to 4 % of its energy anticipated in full at any turn (at 50 rad/s), 0.6 %
+/// with this limit at 0.15 rad (at 30 rad/s; 21 cases of 5-150 rad/s), and 0.08 % at 0.1 (one
+/// case of 21, at 20 rad/s; measured).
 const ANTICIPATED_TURN: f64 = 0.1;
 
 /// The rate at which a substep's drift (constant velocities, torque-free spin) lengthens a row
