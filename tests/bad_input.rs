@@ -267,6 +267,19 @@ fn mesh_file_errors() {
         Some(12),
         "unknown section 'Bogus'",
     );
+}
+
+/// Meshes that parse but are no solid (flat, too large or too small to measure, empty), and two
+/// that are fine: a tetrahedron wound the other way, and CRLF line ends, blank lines and an
+/// Edges section.
+#[test]
+fn mesh_volume_errors() {
+    let dir = Dir::new("mesh-volume");
+    let scene = "1\nm.mesh 1 0 0 0 0 1 0 0 0\n";
+    let mesh = |text: &str| {
+        dir.write("m.mesh", text);
+        load(&dir, scene, None)
+    };
     // Degenerate: all four vertices coplanar.
     expect(
         mesh(&TET.replace("0 0 1 0", "1 1 0 0")),
@@ -311,6 +324,11 @@ fn mesh_file_errors() {
         )
         .is_ok()
     );
+}
+
+#[test]
+fn off_file_errors() {
+    let dir = Dir::new("off");
     let off = |text: &str| {
         dir.write("m.off", text);
         load(&dir, "1\nm.off 1 0 0 0 0 1 0 0 0\n", None)
