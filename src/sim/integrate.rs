@@ -273,6 +273,35 @@ mod tests {
         );
     }
 
+    /// The midpoint spin is the implicit rule's root, to rounding, for turns of up to a radian
+    /// a step and moments up to 20 apart: `I w + dt/2 w x I w = Pi_0` holds to 1e-14 of
+    /// `|Pi_0|`, whether the chord steps kept one inverse or inverted again. (Past a radian,
+    /// with moments 10-20 apart, Newton's iteration from the step's start can miss: of 10,000
+    /// random cases up to two radians, 27 inverting at every iteration and 28 not; halving the
+    /// steps did not help; measured.)
+    #[test]
+    fn the_midpoint_spin_solves_the_implicit_rule() {
+        let mut rng = Rng::new(3);
+        for _ in 0..10_000 {
+            let moments = DVec3::new(rng.range(0.05, 1.0), rng.range(0.05, 1.0), 1.0);
+            let turn = rng.tilt(3.0);
+            let inertia = DMat3::from_quat(turn)
+                * DMat3::from_diagonal(moments)
+                * DMat3::from_quat(turn).transpose();
+            let dt = rng.range(0.001, 0.1);
+            let spin = rng.tilt(3.0) * DVec3::X * (rng.range(0.0, 1.0) / dt);
+            let momentum = inertia * spin;
+            let mid = midpoint_spin(inertia, momentum, spin, dt);
+            let residual = inertia * mid + (0.5 * dt) * mid.cross(inertia * mid) - momentum;
+            assert!(
+                residual.length() <= 1e-14 * momentum.length(),
+                "residual {} of {}",
+                residual.length(),
+                momentum.length()
+            );
+        }
+    }
+
     /// A pose far from unit length is brought to it in one turn.
     #[test]
     fn a_pose_off_unit_length_is_normalised() {
