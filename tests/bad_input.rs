@@ -203,14 +203,16 @@ fn scene_file_errors() {
     assert!(huge.angle_between(small) < 1e-12, "{huge} against {small}");
 }
 
+/// A scene of one body on the medit mesh `text`, written as `m.mesh` in `dir`.
+fn load_medit(dir: &Dir, text: &str) -> Result<tumble::World, LoadError> {
+    dir.write("m.mesh", text);
+    load(dir, "1\nm.mesh 1 0 0 0 0 1 0 0 0\n", None)
+}
+
 #[test]
 fn mesh_file_errors() {
     let dir = Dir::new("mesh");
-    let scene = "1\nm.mesh 1 0 0 0 0 1 0 0 0\n";
-    let mesh = |text: &str| {
-        dir.write("m.mesh", text);
-        load(&dir, scene, None)
-    };
+    let mesh = |text: &str| load_medit(&dir, text);
     expect(
         mesh(&TET.replace("1 2 3 4 0", "1 2 3 9 0")),
         "m.mesh",
@@ -275,11 +277,7 @@ fn mesh_file_errors() {
 #[test]
 fn mesh_volume_errors() {
     let dir = Dir::new("mesh-volume");
-    let scene = "1\nm.mesh 1 0 0 0 0 1 0 0 0\n";
-    let mesh = |text: &str| {
-        dir.write("m.mesh", text);
-        load(&dir, scene, None)
-    };
+    let mesh = |text: &str| load_medit(&dir, text);
     // Degenerate: all four vertices coplanar.
     expect(
         mesh(&TET.replace("0 0 1 0", "1 1 0 0")),
