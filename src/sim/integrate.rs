@@ -109,12 +109,15 @@ fn free_rotation_in_halves(body: &mut RigidBody, dt: f64, halvings: u32) {
 fn midpoint_spin(inertia: DMat3, momentum: DVec3, start: DVec3, dt: f64) -> (DVec3, bool) {
     let h = 0.5 * dt;
     let tolerance = 1e-15 * momentum.length();
+    let residual_at = |w: DVec3| {
+        let iw = inertia * w;
+        iw + h * w.cross(iw) - momentum
+    };
     let mut w = start;
     let mut inverse = euler_jacobian(inertia, w, h).inverse();
     let mut previous = f64::INFINITY;
     for _ in 0..MIDPOINT_ITERATIONS {
-        let iw = inertia * w;
-        let residual = iw + h * w.cross(iw) - momentum;
+        let residual = residual_at(w);
         let size = residual.length();
         if size <= tolerance {
             return (w, true);
@@ -129,9 +132,7 @@ fn midpoint_spin(inertia: DMat3, momentum: DVec3, start: DVec3, dt: f64) -> (DVe
         }
         w -= step;
     }
-    let iw = inertia * w;
-    let size = (iw + h * w.cross(iw) - momentum).length();
-    (w, size <= CONVERGED * momentum.length())
+    (w, residual_at(w).length() <= CONVERGED * momentum.length())
 }
 
 /// Relative residual of a midpoint spin taken as converged.
