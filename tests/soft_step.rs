@@ -1273,6 +1273,25 @@ fn each_solver_times_its_work_under_its_own_stages() {
     }));
 }
 
+/// With the stage timers off a step reads no clock: every timing is zero, and the bodies move
+/// as they do with the timers on, bit for bit, under either solver.
+#[test]
+fn untimed_steps_time_nothing_and_move_the_same() {
+    use tumble::sim::stats::Stage;
+    for settings in [accurate(0.02), Settings::default()] {
+        let mut timed = boxes(3, settings);
+        let mut untimed = timed.clone();
+        untimed.time_stages = false;
+        for _ in 0..20 {
+            let on = timed.step().timings;
+            let off = untimed.step().timings;
+            assert!(on.total() > 0.0);
+            assert!(Stage::ALL.iter().all(|&s| off.get(s) == 0.0), "{off:?}");
+        }
+        assert_eq!(timed.bodies, untimed.bodies);
+    }
+}
+
 /// A grab of a body index past the world's bodies pulls nothing, with either solver (the soft
 /// step indexed the bodies with it to wake its island, and panicked; found by review).
 #[test]

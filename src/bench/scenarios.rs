@@ -154,7 +154,8 @@ pub struct Run {
 /// `bench scale`'s loops do: handed over once a step from outside it, pile_rest under the soft
 /// step took 1.4-1.7x the time of an earlier run of the same bits on another machine, where
 /// every other scenario (small enough to step on the calling thread) and Rapier took the same
-/// or less.
+/// or less. The world's stage timers are off ([`World::time_stages`]), as Rapier's are by
+/// default: nothing here reads them.
 fn simulate(
     engine: Engine,
     world: &mut World,
@@ -166,6 +167,7 @@ fn simulate(
     } else {
         0
     };
+    world.time_stages = false;
     let mut step = stepper(engine, world);
     let stepping = world.stepping(|world| {
         let mut stepping = 0.0;

@@ -39,6 +39,11 @@ pub struct World {
     pub warnings: Vec<String>,
     /// A point of a body pulled towards a target (the viewer's mouse drag), by both solvers.
     pub grab: Option<Grab>,
+    /// Whether [`World::step`] times its stages ([`StepStats::timings`]; on by default, for the
+    /// viewer's and `tumble run`'s stage figures). Off, a step reads no clock: its eight or so
+    /// reads are 8-10 % of a two-body step (the box hung by a corner, `bench accuracy`, which
+    /// turns them off as Rapier's counters are compiled out by default).
+    pub time_stages: bool,
     /// `constraints_by_body[b]`: the constraints on body b.
     constraints_by_body: Vec<Vec<u32>>,
     broad_phase: BroadPhase,
@@ -74,6 +79,7 @@ impl World {
             step_count: 0,
             warnings: Vec::new(),
             grab: None,
+            time_stages: true,
             constraints_by_body,
         }
     }
@@ -116,6 +122,15 @@ impl World {
         stats
     }
 
+    /// The step's stage timer: on or off as [`World::time_stages`] says.
+    fn stopwatch(&self) -> Stopwatch {
+        if self.time_stages {
+            Stopwatch::new()
+        } else {
+            Stopwatch::off()
+        }
+    }
+
     /// The coursework solver: with substeps, its whole update runs `substeps` times with
     /// `dt / substeps`.
     fn coursework_step(&mut self, ctx: &StepContext) -> StepStats {
@@ -130,7 +145,7 @@ impl World {
     /// The soft-step solver: collide once, solve and integrate in substeps, then the pose check.
     fn soft_step(&mut self, ctx: &StepContext) -> StepStats {
         let mut stats = StepStats::default();
-        let mut watch = Stopwatch::new();
+        let mut watch = self.stopwatch();
         // A grab of a body that is not there pulls nothing (as in the coursework's step).
         let count = self.bodies.len();
         let scene = Scene {
@@ -156,7 +171,7 @@ impl World {
             substeps: 1,
             ..StepStats::default()
         };
-        let mut watch = Stopwatch::new();
+        let mut watch = self.stopwatch();
         watch.enter(Stage::Integrate);
         integrate_bodies(&mut self.bodies, &ctx.settings, ctx.dt);
         if let Some(grab) = &self.grab {
