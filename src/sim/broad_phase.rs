@@ -30,6 +30,10 @@ pub struct BroadPhase {
     lookahead: f64,
     /// Each body's box grown by how far it can travel in the step (soft step).
     speculative: Vec<Aabb>,
+    /// Which bodies left their proxies this step, and which the grid holds (not quarantined):
+    /// kept between steps so a step allocates neither.
+    moved: Vec<bool>,
+    active: Vec<bool>,
 }
 
 impl BroadPhase {
@@ -90,9 +94,9 @@ impl BroadPhase {
         let n = bodies.len();
         let kept = self.proxies.len() == n && self.aabbs.len() == n;
         self.proxies.resize(n, Aabb::EMPTY);
-        let mut moved = vec![false; n];
+        let moved = cleared(&mut self.moved, n);
         let (aabbs, lookahead) = (&self.aabbs, self.lookahead);
-        let items = (&mut self.proxies, &mut moved).into_par_iter();
+        let items = (&mut self.proxies, &mut *moved).into_par_iter();
         let items = items.zip(bodies).enumerate();
         parallel::for_each(items, 256, |(i, ((proxy, moved), body))| {
             if kept && proxy.contains(&aabbs[i]) {
@@ -102,10 +106,10 @@ impl BroadPhase {
             *moved = true;
         });
         let pairs = grid_pairs(
-            &mut self.grid,
+            (&mut self.grid, &mut self.active),
             &self.proxies,
             bodies,
-            &moved,
+            &self.moved,
             (keep, tested),
         );
         PairQueue::new(pairs)
@@ -140,9 +144,9 @@ impl BroadPhase {
         self.aabbs = Vec::new();
         self.lookahead = PROXY_LOOKAHEAD_STEPS * dt;
         let lookahead = self.lookahead;
-        let mut moved = vec![false; n];
+        let moved = cleared(&mut self.moved, n);
         let boxes = (&mut self.speculative, &mut self.proxies);
-        let items = (boxes, &mut self.placed, &mut moved).into_par_iter();
+        let items = (boxes, &mut self.placed, moved).into_par_iter();
         let items = items.zip((bodies, margins));
         parallel::for_each(
             items,
@@ -166,10 +170,10 @@ impl BroadPhase {
             (awake[i] || awake[j]) && speculative[i].overlaps(&speculative[j]) && keep(i, j)
         };
         grid_pairs(
-            &mut self.grid,
+            (&mut self.grid, &mut self.active),
             &self.proxies,
             bodies,
-            &moved,
+            &self.moved,
             (wanted, tested),
         )
     }
@@ -205,15 +209,23 @@ impl BroadPhase {
 /// The grid brought to the `proxies` (the `moved` ones changed, quarantined bodies left out),
 /// and its pairs of overlapping proxies for which `keep(i, j)`; `tested` counts box tests.
 fn grid_pairs(
-    grid: &mut Grid,
+    (grid, active): (&mut Grid, &mut Vec<bool>),
     proxies: &[Aabb],
     bodies: &[RigidBody],
     moved: &[bool],
     (keep, tested): (impl Fn(usize, usize) -> bool + Sync, &mut usize),
 ) -> Vec<(u32, u32)> {
-    let active: Vec<bool> = bodies.iter().map(|b| !b.quarantined).collect();
-    grid.sync(proxies, &active, moved);
+    active.clear();
+    active.extend(bodies.iter().map(|b| !b.quarantined));
+    grid.sync(proxies, active, moved);
     grid.overlapping_pairs(proxies, keep, tested)
+}
+
+/// `buffer` as `n` falses, its allocation kept.
+fn cleared(buffer: &mut Vec<bool>, n: usize) -> &mut Vec<bool> {
+    buffer.clear();
+    buffer.resize(n, false);
+    buffer
 }
 
 /// Steps of travel a proxy reaches ahead of its body.
