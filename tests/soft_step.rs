@@ -266,49 +266,6 @@ fn friction_holds_at_20_degrees_and_slides_at_30() {
     }
 }
 
-/// A box sliding down a 30 degree incline gains `g (sin a - mu cos a) dt` of speed in every
-/// step once it slides, not only on average: the Gauss-Seidel passes take its four corners in
-/// the same order from step to step. In parry's order, which changed with a hair of pitch, it
-/// rocked in a three-step cycle with each step's acceleration off by 3e-4 (dt 0.02).
-#[test]
-fn a_sliding_box_accelerates_steadily() {
-    let (angle, mu) = (30f64.to_radians(), 0.5);
-    let tilt = DQuat::from_rotation_z(angle);
-    let (down, up) = (tilt * DVec3::NEG_X, tilt * DVec3::Y);
-    let incline = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(40.0, 1.0, 4.0))).unwrap();
-    let block = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(1.0, 0.5, 0.75))).unwrap();
-    let base = DVec3::new(0.0, 60.0, 0.0);
-    for dt in [0.04, 0.02, 0.01] {
-        let bodies = vec![
-            RigidBody::on_shape(&incline, 0, 100.0, true, base, tilt),
-            RigidBody::on_shape(&block, 1, 100.0, false, base + 1.5 * up, tilt),
-        ];
-        let settings = Settings {
-            friction: mu,
-            restitution: 0.0,
-            ..accurate(dt)
-        };
-        let shapes = vec![incline.clone(), block.clone()];
-        let names = vec!["incline".into(), "box".into()];
-        let mut world = World::new(shapes, names, bodies, vec![], settings);
-        let expected = 9.8 * (angle.sin() - mu * angle.cos());
-        let mut worst: f64 = 0.0;
-        let mut speed = 0.0;
-        for step in 0..(4.0 / dt) as usize {
-            world.step();
-            let now = world.bodies[1].linear_velocity.dot(down);
-            if step as f64 * dt >= 2.0 {
-                worst = worst.max(((now - speed) / dt / expected - 1.0).abs());
-            }
-            speed = now;
-        }
-        assert!(
-            worst < 1e-5,
-            "dt {dt}: a step's acceleration off by {worst}"
-        );
-    }
-}
-
 #[test]
 fn pendulum_keeps_its_amplitude_and_period() {
     for (dt, amplitude_bound) in [(0.01, 0.01), (0.04, 0.02)] {
@@ -972,10 +929,11 @@ fn a_cylinder_turning_onto_the_ground_does_not_sink_into_it() {
 
 /// A stack of three boxes falls asleep; a fourth box dropped from above wakes the whole stack
 /// through contact when it lands (not before), and the four fall asleep again. Dropped from
-/// 10 units it lands at 11.3 units/s. (From 20 units, at 18 units/s, the impact's step leaves
-/// the stack moving into the ground, the soft contacts push it back out and it hops: the top
-/// box came to rest on the stack or beside it depending on the manifolds' point order, and in
-/// Rapier the stack topples; see docs/accuracy.md.)
+/// 10 units it lands at 11.3 units/s. (Harder impacts leave the stack moving into the ground
+/// at the end of the impact's step, the soft contacts push it back out and it hops: dropped
+/// from 14 units, at 15 units/s, the top box comes to rest beside the stack; from 20 it came
+/// to rest on it, as this test had it until stop 57, or beside it with the manifolds' points
+/// in another order. Rapier topples the stack from 14 and 20; see docs/accuracy.md.)
 #[test]
 fn a_resting_stack_sleeps_and_a_dropped_box_wakes_it() {
     let mut world = boxes(4, settling(0.02));
