@@ -85,8 +85,15 @@ fn free_rotation_in_halves(body: &mut RigidBody, dt: f64, halvings: u32) {
     let spin = DMat3::from_quat(q).transpose() * body.angular_velocity;
     let momentum = inertia * spin;
     // Newton starts from explicit Euler's half step, `w_0 - dt/2 I^-1 (w_0 x Pi_0)`, within
-    // `O(dt^2)` of the root: one iteration fewer than from `w_0`.
-    let start = spin - 0.5 * dt * (inverse * spin.cross(momentum));
+    // `O(dt^2)` of the root: one iteration fewer than from `w_0`. Not where that step would
+    // change the spin by more than itself (turns of radians a step): there it overshoots, and
+    // a step of 1e9 s blew bodies up a step earlier than from `w_0`.
+    let euler = 0.5 * dt * (inverse * spin.cross(momentum));
+    let start = if euler.length_squared() < spin.length_squared() {
+        spin - euler
+    } else {
+        spin
+    };
     let (mid, converged) = midpoint_spin(inertia, momentum, start, dt);
     if !converged && halvings > 0 {
         free_rotation_in_halves(body, 0.5 * dt, halvings - 1);
