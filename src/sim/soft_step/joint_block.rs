@@ -173,10 +173,6 @@ pub struct JointBlocks {
     /// Which of each constraint's two bodies moved (`is_dynamic`) when the groups were made:
     /// they decide the groups.
     built_for: Vec<(bool, bool)>,
-    /// Per record, the drift's lengthening rate the last soft pass anticipated at its solved
-    /// velocities ([`Scratch::anticipate_again`]), for the next soft pass of the step to start
-    /// from; NaN where there is none.
-    drift: Vec<f64>,
 }
 
 /// One group's system: geometry, rates and their ranges, `K`, impulses, the active set.
@@ -488,23 +484,6 @@ unsafe fn rate_and_drift(
         0.0
     };
     (g.axis.dot(relative), ahead)
-}
-
-/// Row `i` of `group`'s drift as the last soft pass of the step anticipated it at its solved
-/// velocities ([`Scratch::anticipate_again`]), taken (none is left for the next pass): the
-/// next soft pass starts from it instead of predicting again at its own velocities, one
-/// derivative fewer a substep (a tenth of the hung box's step), and corrects to its solved
-/// velocities as before.
-///
-/// # Safety
-/// No other thread reads or writes the group's records meanwhile.
-unsafe fn take_drift(group: GroupView, i: usize) -> Option<f64> {
-    let at = group.first + i;
-    // SAFETY: the caller's contract.
-    let kept = unsafe { group.drift.read(at) };
-    // SAFETY: as above.
-    unsafe { group.drift.write(at, f64::NAN) };
-    kept.is_finite().then_some(kept)
 }
 
 /// The row's Jacobian at geometry `g`; `inverse(b)` is body b's inverse mass and world inverse
@@ -857,15 +836,9 @@ impl JointBlocks {
             scratch,
             cut_short,
             cycled,
-            drift,
             ..
         } = self;
         cycled.resize(groups.len(), false);
-        if drift.len() != records.len() {
-            drift.clear();
-            drift.resize(records.len(), f64::NAN);
-        }
-        let drift = Shared::new(drift);
         let held = Shared::new(held);
         let cycled_in = Shared::new(cycled);
         let view = |g: &Group| GroupView {
@@ -877,7 +850,6 @@ impl JointBlocks {
             held: &held,
             first: g.records.start,
             rods: g.rods,
-            drift: &drift,
         };
         let direct = |(_, g): &(usize, &Group)| g.direct();
         // Whether a pose moved, and the projections cut short.
@@ -946,12 +918,6 @@ impl JointBlocks {
         changed
     }
 
-    /// Forgets the drifts the last step's soft passes anticipated: a step's first soft pass
-    /// predicts its own.
-    pub fn forget_drift(&mut self) {
-        self.drift.fill(f64::NAN);
-    }
-
     /// The projections cut short since the last call (see [`JointBlocks::cut_short`]).
     pub fn take_cut_short(&mut self) -> usize {
         std::mem::take(&mut self.cut_short)
@@ -970,8 +936,6 @@ struct GroupView<'a> {
     held: &'a Shared<'a, Side>,
     first: usize,
     rods: bool,
-    /// The last soft pass's anticipated drift, by record of the world ([`JointBlocks::drift`]).
-    drift: &'a Shared<'a, f64>,
 }
 
 impl Scratch {
@@ -1002,17 +966,12 @@ impl Scratch {
             self.ahead.resize(records.len(), 0.0);
         }
         for (i, (r, g)) in records.iter().zip(&self.geometries).enumerate() {
-            // SAFETY: the group's own records and bodies (caller's contract).
-            let kept = if anticipating {
-                unsafe { take_drift(group, i) }
-            } else {
-                None
-            };
-            let predict = anticipating && kept.is_none();
-            let (rate, ahead) = unsafe { rate_and_drift((r, g), poses, bodies, (inv_h, predict)) };
+            // SAFETY: the group's bodies (caller's contract).
+            let (rate, ahead) =
+                unsafe { rate_and_drift((r, g), poses, bodies, (inv_h, anticipating)) };
             self.u[i] = rate;
             if anticipating {
-                self.ahead[i] = kept.unwrap_or(ahead);
+                self.ahead[i] = ahead;
             }
             let allowed = |gap: f64| match push {
                 _ if gap > 0.0 => gap * inv_h,
@@ -1076,8 +1035,6 @@ impl Scratch {
                     (inv_h, true),
                 )
             };
-            // SAFETY: the group's own record (caller's contract).
-            unsafe { group.drift.write(group.first + i, ahead) };
             self.x.push(self.ahead[i] - ahead);
         }
         if single_held {

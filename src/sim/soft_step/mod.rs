@@ -637,7 +637,6 @@ impl SoftStep {
         if made {
             self.blocks = JointBlocks::new(constraints, bodies);
         }
-        self.blocks.forget_drift();
         self.relaxed_joints.resize(constraints.len(), false);
         if self.blocks.relax_marked(&self.relaxed_joints) || made {
             work.large_groups = self.blocks.large_group_constraints();
