@@ -929,11 +929,12 @@ fn a_cylinder_turning_onto_the_ground_does_not_sink_into_it() {
 
 /// A stack of three boxes falls asleep; a fourth box dropped from above wakes the whole stack
 /// through contact when it lands (not before), and the four fall asleep again. Dropped from
-/// 10 units it lands at 11.3 units/s. (Harder impacts leave the stack moving into the ground
-/// at the end of the impact's step, the soft contacts push it back out and it hops: dropped
-/// from 14 units, at 15 units/s, the top box comes to rest beside the stack; from 20 it came
-/// to rest on it, as this test had it until stop 57, or beside it with the manifolds' points
-/// in another order. Rapier topples the stack from 14 and 20; see docs/accuracy.md.)
+/// 10 units it lands at 11.3 units/s. (Harder impacts are not solved within the impact's
+/// substeps, one soft and one relax pass each, and leave the stack moving up: it hops, and
+/// dropped from 14 units, at 15 units/s, the top box comes to rest beside the stack; from 20 it
+/// came to rest on it, as this test had it until stop 57, or beside it with the manifolds'
+/// points in another order. Rapier topples the stack from 14 and 20; see docs/accuracy.md,
+/// "Stop 58".)
 #[test]
 fn a_resting_stack_sleeps_and_a_dropped_box_wakes_it() {
     let mut world = boxes(4, settling(0.02));
