@@ -81,6 +81,9 @@ pub type AccuracyResults = BTreeMap<String, BTreeMap<String, BTreeMap<String, Ro
 
 #[derive(Debug, Clone)]
 pub struct AccuracyReport {
+    /// The machine the run measured: printed with the table, not in the JSON, whose layout is
+    /// the results alone.
+    pub machine: super::machine::Machine,
     pub results: AccuracyResults,
     pub dts: Vec<f64>,
     pub csv: PathBuf,
@@ -290,6 +293,7 @@ pub fn run(config: &AccuracyConfig, progress: &dyn Progress) -> anyhow::Result<A
     std::fs::write(&csv_path, csv)?;
     let plots = write_plots(&results, &config.out)?;
     Ok(AccuracyReport {
+        machine: super::machine::Machine::detect(),
         results,
         dts,
         csv: csv_path,

@@ -7,6 +7,8 @@
 pub mod accuracy;
 pub mod alloc;
 #[cfg(feature = "bench")]
+pub mod machine;
+#[cfg(feature = "bench")]
 pub mod plot;
 #[cfg(feature = "compare-rapier")]
 pub mod rapier;

@@ -220,6 +220,8 @@ impl Measurement {
 
 #[derive(Debug, Clone, Serialize)]
 pub struct ScaleReport {
+    /// The machine the run measured (times compare only on one machine).
+    pub machine: super::machine::Machine,
     pub cores: usize,
     pub steps: usize,
     pub rapier: &'static str,
@@ -468,6 +470,7 @@ pub fn run(config: &ScaleConfig, progress: &dyn Progress) -> anyhow::Result<Scal
     std::fs::write(&csv, csv_text(&results))?;
     let plots = write_plots(&results, &config.scenes, &config.out)?;
     Ok(ScaleReport {
+        machine: super::machine::Machine::detect(),
         cores: rayon::current_num_threads(),
         steps: config.steps,
         rapier: rapier_note(),

@@ -147,7 +147,10 @@ pub fn scale(args: &ScaleArgs) -> anyhow::Result<()> {
         out: args.out.clone(),
     };
     let report = tumble::bench::scale::run(&config, &ProgressBar::default())?;
-    print_or_table(args.json, &report, &report.csv, || print_scale(&report))
+    print_or_table(args.json, &report, &report.csv, || {
+        println!("machine: {}", report.machine.describe());
+        print_scale(&report)
+    })
 }
 
 /// With `--json` prints `value` as JSON, else the `table`; either way the JSON is written beside
@@ -278,6 +281,7 @@ pub fn accuracy(args: &AccuracyArgs) -> anyhow::Result<()> {
     };
     let report = tumble::bench::accuracy::run(&config, &ProgressBar::default())?;
     print_or_table(args.json, &report.results, &report.csv, || {
+        println!("machine: {}", report.machine.describe());
         print_accuracy(&report)
     })
 }
