@@ -1,7 +1,7 @@
 //! The machine a benchmark ran on, as Linux describes it: the processor's model, the logical
 //! CPUs the run could use, and the first CPU's caches. Run times are only comparable on one
-//! machine, and the scale bench's growth with N depends on what fits in the caches (a run on a
-//! machine with 32 MiB of L3 grew 17.1x from scatter-10000 to scatter-100000 where another
+//! machine, and the scale bench's growth with N likely turns on what fits in the caches (a run
+//! on a machine with 32 MiB of L3 grew 17.1x from scatter-10000 to scatter-100000 where another
 //! machine's grew 11.3x; docs/scale.md), so the reports name the machine.
 
 use serde::Serialize;
