@@ -7,7 +7,7 @@
 use serde::Serialize;
 use std::path::Path;
 
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Serialize)]
 pub struct Machine {
     /// The processor's model name ("unknown" where the system does not say).
     pub cpu: String,
