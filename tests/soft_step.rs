@@ -1076,6 +1076,69 @@ fn a_landing_wakes_its_neighbours_not_the_whole_row() {
     assert!(world.bodies.iter().all(|b| b.asleep), "not asleep again");
 }
 
+/// A plank balanced on a fixed support, and a box resting on the ground beside it; `sleep` on
+/// or off.
+fn plank_on_support(sleep: bool) -> World {
+    let settings = Settings {
+        sleep,
+        ..settling(0.02)
+    };
+    let support = common::shape(&assets::cuboid(DVec3::new(0.25, 0.5, 1.0)));
+    let plank = common::shape(&assets::cuboid(DVec3::new(4.0, 0.2, 1.0)));
+    let block = common::shape(&assets::cuboid(DVec3::splat(0.5)));
+    let at = |x: f64, y: f64| DVec3::new(x, y, 0.0);
+    let bodies = vec![
+        RigidBody::on_shape(&support, 0, 100.0, true, at(0.0, 0.5), DQuat::IDENTITY),
+        RigidBody::on_shape(&plank, 1, 100.0, false, at(0.0, 1.2), DQuat::IDENTITY),
+        RigidBody::on_shape(&block, 2, 100.0, false, at(20.0, 0.5), DQuat::IDENTITY),
+    ];
+    let names = ["support", "plank", "box"].map(String::from).to_vec();
+    World::new(
+        vec![support, plank, block],
+        names,
+        bodies,
+        Vec::new(),
+        settings,
+    )
+}
+
+/// The plank's tilt (radians) 3 s after the box is set gently on its end (awake, at rest,
+/// touching, as a body that crept there would be) once plank and box rest (asleep when
+/// sleeping is on).
+fn tilt_under_a_box_set_on_the_end(sleep: bool) -> f64 {
+    let mut world = plank_on_support(sleep);
+    for _ in 0..100 {
+        world.step();
+    }
+    assert_eq!(world.bodies[1].asleep, sleep);
+    let b = &mut world.bodies[2];
+    b.position = DVec3::new(3.5, 1.4 + 0.5, 0.0);
+    (b.asleep, b.moving, b.sleep_time) = (false, false, 0.0);
+    for _ in 0..150 {
+        world.step();
+    }
+    let (axis, angle) = world.bodies[1].orientation.to_axis_angle();
+    angle * axis.z.signum()
+}
+
+/// A box set on the end of a sleeping plank balanced on a support wakes it, slower than any
+/// sleep speed, and the plank tips under it as it does with sleeping off: its end on the
+/// ground, turned by about atan(1 / 4.25) = 13 degrees (before, the plank slept on, level, the
+/// box resting on its end in the air).
+#[test]
+fn a_box_set_on_a_sleeping_plank_tips_it() {
+    let tipped = tilt_under_a_box_set_on_the_end(false);
+    assert!(
+        (-0.35..-0.2).contains(&tipped),
+        "awake plank turned by {tipped} rad"
+    );
+    let slept = tilt_under_a_box_set_on_the_end(true);
+    assert!(
+        (slept - tipped).abs() < 0.01,
+        "sleeping plank turned by {slept} rad, awake {tipped}"
+    );
+}
+
 /// Swings the pendulum `swing` (pivot, length, angle; see [`scenarios::pendulum_world`]) under
 /// the preset at `dt` for `seconds`, asserting that it never sleeps; the apexes it passed
 /// after the start (where its horizontal velocity changes sign).

@@ -491,7 +491,7 @@ impl SoftStep {
     }
 
     /// Candidate pairs (see [`candidate_pairs`]), after waking the sleeping islands a moving
-    /// body comes near.
+    /// body comes near or an awake body touched.
     fn broad_phase(
         &mut self,
         ctx: &StepContext,
@@ -515,7 +515,9 @@ impl SoftStep {
         );
         let radii = &self.radii;
         let pairs = candidate_pairs(broad, (bodies, shapes), (radii, margins, dt), stats);
-        let seeds = sleep::disturbed(bodies, scene.constraints, &pairs);
+        // The last step's manifolds are still those of the work space until the narrow phase.
+        let mut seeds = sleep::disturbed(bodies, scene.constraints, &pairs);
+        seeds.extend(sleep::touched_sleepers(bodies, &self.work.manifolds));
         let touching = self.contacts.pairs();
         if !sleep::wake(bodies, scene.constraints, touching, seeds.into_iter()) {
             return pairs;

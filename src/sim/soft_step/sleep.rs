@@ -209,6 +209,27 @@ pub fn disturbed(
     out
 }
 
+/// Sleeping bodies that an awake body touched in `manifolds` (the last step's), at any speed.
+/// A touch links the two islands, as a contact that begins touching links and wakes them in
+/// Box2D v3 (`b2LinkContact`): without it a body that crept into a sleeper (slower than the
+/// sleep speed, so [`disturbed`] passes it over) met a wall, and a box set gently on the end of
+/// a sleeping plank balanced on a support rested there while the plank stayed level. Two
+/// islands that touch sleep together from then on, so the touch wakes the sleeper once.
+pub fn touched_sleepers<'a>(
+    bodies: &'a [RigidBody],
+    manifolds: &'a [Manifold],
+) -> impl Iterator<Item = usize> + 'a {
+    let asleep = |i: usize| i < bodies.len() && bodies[i].asleep && bodies[i].is_dynamic();
+    let awake = |i: usize| i < bodies.len() && bodies[i].is_awake();
+    touching_pairs(manifolds)
+        .filter(|&(i, _)| i != GROUND)
+        .filter_map(move |(i, j)| match (awake(i), awake(j)) {
+            (true, false) => asleep(j).then_some(j),
+            (false, true) => asleep(i).then_some(i),
+            _ => None,
+        })
+}
+
 /// The pairs of `manifolds` whose points hold the bodies together (touching, not merely
 /// speculative).
 pub fn touching_pairs(manifolds: &[Manifold]) -> impl Iterator<Item = (usize, usize)> + '_ {
