@@ -56,6 +56,11 @@ pub struct SettingsArgs {
     /// where N would make them longer than 1/200 s) [default: 1; 4 with --accurate].
     #[arg(long, value_name = "N")]
     pub substeps: Option<u32>,
+    /// Step length from which a step takes all its substeps; a shorter one takes
+    /// proportionally fewer, down to half, so substeps stay about as long as at this length
+    /// (soft step; 0: always all) [default: 0; 0.01 with --accurate].
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    pub full_substeps_from: Option<f64>,
     /// Rotation integrator [default: coursework; angular-momentum with --accurate].
     #[arg(long, value_enum)]
     pub rotation_integrator: Option<RotationIntegrator>,
@@ -129,6 +134,13 @@ impl SettingsArgs {
                 "--substeps must lie in 1..=1000, got {v}"
             );
             s.substeps = v;
+        }
+        if let Some(v) = self.full_substeps_from {
+            anyhow::ensure!(
+                v.is_finite() && v >= 0.0,
+                "--full-substeps-from must be a non-negative number of seconds, got {v}"
+            );
+            s.full_substeps_from = v;
         }
         if let Some(v) = self.rotation_integrator {
             s.rotation_integrator = v;

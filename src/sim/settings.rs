@@ -125,6 +125,13 @@ pub struct Settings {
     /// touching where these are longer than 1/200 s (eight at dt 0.04), so its contacts keep
     /// their stiffness.
     pub substeps: u32,
+    /// Step length (seconds) from which the soft step takes all of its `substeps`; a shorter
+    /// step takes proportionally fewer, down to half of them, so that its substeps stay about
+    /// as long as at this length rather than shrinking with the step (0: always `substeps`).
+    /// The preset's 0.01 takes two substeps at dt 0.005 (1/400 s each, as at dt 0.01) and two
+    /// at 0.0025, at about half the time of four, with errors still below Rapier's
+    /// (docs/accuracy.md). The coursework solver ignores it.
+    pub full_substeps_from: f64,
     pub rotation_integrator: RotationIntegrator,
     /// Islands that stay slower than the sleep threshold for half a second sleep until
     /// something touches them (soft-step solver; the coursework solver never sleeps).
@@ -147,6 +154,7 @@ impl Default for Settings {
             restitution_threshold: 0.0,
             contact_patches: false,
             substeps: 1,
+            full_substeps_from: 0.0,
             rotation_integrator: RotationIntegrator::Coursework,
             sleep: true,
             broad_phase: BroadPhase::Grid,
@@ -157,13 +165,15 @@ impl Default for Settings {
 
 impl Settings {
     /// The `--accurate` preset: tumble's soft-step solver, 4 substeps (more in a step with
-    /// contacts at dt over 0.02, see [`Settings::substeps`]), the angular-momentum
+    /// contacts at dt over 0.02, see [`Settings::substeps`]; fewer at dt under 0.01, see
+    /// [`Settings::full_substeps_from`]), the angular-momentum
     /// rotation integrator, friction 0.5, bounces only for impacts faster than 0.5 units/s
     /// (chosen by `tumble bench accuracy`; see docs/accuracy.md).
     pub fn accurate() -> Self {
         Self {
             solver: Solver::SoftStep,
             substeps: 4,
+            full_substeps_from: 0.01,
             rotation_integrator: RotationIntegrator::AngularMomentum,
             restitution_threshold: 0.5,
             ..Self::default()
@@ -205,6 +215,9 @@ impl Settings {
             s.gravity = Self::default().gravity;
         }
         s.substeps = s.substeps.clamp(1, 1000);
+        if !s.full_substeps_from.is_finite() || s.full_substeps_from < 0.0 {
+            s.full_substeps_from = 0.0;
+        }
         s
     }
 }

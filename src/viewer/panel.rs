@@ -485,6 +485,7 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
         restitution_threshold,
         contact_patches,
         substeps,
+        full_substeps_from,
         rotation_integrator,
         sleep,
         broad_phase,
@@ -514,6 +515,11 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
             .text("tolerance"),
     );
     ui.add(egui::Slider::new(substeps, 1..=32).text("substeps"));
+    ui.add(egui::Slider::new(full_substeps_from, 0.0..=0.05).text("all substeps from dt"))
+        .on_hover_text(
+            "A shorter step takes proportionally fewer substeps, down to half, so they stay \
+             about as long as at this step (soft-step solver; 0: always all)",
+        );
     ui.add(egui::Slider::new(restitution_threshold, 0.0..=5.0).text("restitution threshold"))
         .on_hover_text("Contacts closing slower than this (units/s) bounce with e = 0 (0: off)");
     ui.horizontal(|ui| {
