@@ -1134,15 +1134,17 @@ fn tilt_under_a_box_set_on_the_end(sleep: bool) -> f64 {
 }
 
 /// A box set on the end of a sleeping plank balanced on a support wakes it, slower than any
-/// sleep speed, and the plank tips under it as it does with sleeping off: its end on the
-/// ground, turned by about atan(1 / 4.25) = 13 degrees (before, the plank slept on, level, the
-/// box resting on its end in the air).
+/// sleep speed, and the plank tips under it as it does with sleeping off: about the support's
+/// edge, 1 above the ground and 3.75 from the plank's end, until the end is on the ground,
+/// turned by asin(1 / 3.75) = 15.5 degrees (before, the plank slept on, level, the box resting
+/// on its end in the air).
 #[test]
 fn a_box_set_on_a_sleeping_plank_tips_it() {
     let tipped = tilt_under_a_box_set_on_the_end(false);
+    let resting = -(1.0f64 / 3.75).asin();
     assert!(
-        (-0.35..-0.2).contains(&tipped),
-        "awake plank turned by {tipped} rad"
+        (tipped - resting).abs() < 0.01,
+        "awake plank turned by {tipped} rad, {resting} with its end on the ground"
     );
     let slept = tilt_under_a_box_set_on_the_end(true);
     assert!(

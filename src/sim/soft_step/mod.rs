@@ -1043,6 +1043,14 @@ mod tests {
         assert_eq!((with(0.005, 8, preset), with(0.0025, 8, preset)), (4, 4));
         assert_eq!((with(0.001, 1, preset), with(0.001, 3, preset)), (1, 2));
         assert_eq!((with(0.0025, 4, 0.0), with(0.001, 3, 0.0)), (4, 3));
+        // A length typed as nonsense means all of them.
+        for typed in [f64::NAN, f64::INFINITY, -0.01] {
+            let settings = crate::sim::Settings {
+                full_substeps_from: typed,
+                ..crate::sim::Settings::accurate()
+            };
+            assert_eq!(settings.sanitized().full_substeps_from, 0.0, "{typed}");
+        }
     }
 
     /// The bounding-sphere filter drops only pairs the narrow phase finds nothing for: bodies of
