@@ -97,6 +97,8 @@ pub struct SoftStep {
     /// groups made again, or a restored snapshot, see the same.
     relaxed_joints: Vec<bool>,
     islands: sleep::Islands,
+    /// Sleeping bodies an awake body touched in the last step: the next step wakes them.
+    touched_sleepers: Vec<usize>,
     /// The settings of the last step: a change wakes every sleeping body.
     last_settings: Option<crate::sim::Settings>,
     /// Length of the last solved step's substeps (the carried impulses are per substep).
@@ -188,6 +190,7 @@ pub struct Carried {
     last_substep: f64,
     joint_boost: u32,
     relaxed_joints: Vec<bool>,
+    touched_sleepers: Vec<usize>,
 }
 
 impl Carried {
@@ -197,6 +200,7 @@ impl Carried {
             + self.joint_sides.heap_bytes()
             + self.pair_states.heap_bytes()
             + self.relaxed_joints.capacity()
+            + self.touched_sleepers.capacity() * std::mem::size_of::<usize>()
     }
 }
 
@@ -369,6 +373,7 @@ impl SoftStep {
             last_substep: self.last_substep,
             joint_boost: self.joint_boost,
             relaxed_joints: self.relaxed_joints.clone(),
+            touched_sleepers: self.touched_sleepers.clone(),
         }
     }
 
@@ -381,6 +386,7 @@ impl SoftStep {
         self.last_substep = carried.last_substep;
         self.joint_boost = carried.joint_boost;
         self.relaxed_joints.clone_from(&carried.relaxed_joints);
+        self.touched_sleepers.clone_from(&carried.touched_sleepers);
     }
 
     /// One step: collide, then solve in substeps.
@@ -507,6 +513,7 @@ impl SoftStep {
         w.contacts.clear();
         w.points.clear();
         self.pair_states.keep(&[], Vec::new());
+        self.touched_sleepers.clear();
         stats.asleep = bodies.iter().filter(|b| b.asleep).count();
     }
 
@@ -535,9 +542,8 @@ impl SoftStep {
         );
         let radii = &self.radii;
         let pairs = candidate_pairs(broad, (bodies, shapes), (radii, margins, dt), stats);
-        // The last step's manifolds are still those of the work space until the narrow phase.
         let mut seeds = sleep::disturbed(bodies, scene.constraints, &pairs);
-        seeds.extend(sleep::touched_sleepers(bodies, &self.work.manifolds));
+        seeds.append(&mut self.touched_sleepers);
         let touching = self.contacts.pairs();
         if !sleep::wake(bodies, scene.constraints, touching, seeds.into_iter()) {
             return pairs;
@@ -823,6 +829,11 @@ impl SoftStep {
                 touching,
                 ctx.settings.time_step,
             );
+        }
+        self.touched_sleepers.clear();
+        if ctx.settings.sleep {
+            let touched = sleep::touched_sleepers(bodies, &w.manifolds);
+            self.touched_sleepers.extend(touched);
         }
         stats.asleep = bodies.iter().filter(|b| b.asleep).count();
         self.contacts
