@@ -832,8 +832,8 @@ impl SoftStep {
         }
         self.touched_sleepers.clear();
         if ctx.settings.sleep {
-            let touched = sleep::touched_sleepers(bodies, &w.manifolds);
-            self.touched_sleepers.extend(touched);
+            let touched = self.islands.touched_sleepers();
+            self.touched_sleepers.extend_from_slice(touched);
         }
         stats.asleep = bodies.iter().filter(|b| b.asleep).count();
         self.contacts

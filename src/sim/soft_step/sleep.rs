@@ -49,6 +49,9 @@ pub struct Islands {
     energy: Vec<f64>,
     /// Whether each body touches something (by body).
     touched: Vec<bool>,
+    /// Sleeping bodies an awake body touches, found by the last [`settle`] (see
+    /// [`Islands::touched_sleepers`]).
+    touched_sleepers: Vec<usize>,
 }
 
 impl Islands {
@@ -62,6 +65,18 @@ impl Islands {
         }
         self.touched.clear();
         self.touched.resize(n, false);
+        self.touched_sleepers.clear();
+    }
+
+    /// Sleeping bodies that a body still awake after the last [`settle`] touched in its step,
+    /// at any speed: the next step wakes them. A touch links the two islands, as a contact that
+    /// begins touching links and wakes them in Box2D v3 (`b2LinkContact`): without it a body
+    /// that crept into a sleeper (slower than the sleep speed, so [`disturbed`] passes it over)
+    /// met a wall, and a box set gently on the end of a sleeping plank balanced on a support
+    /// rested there while the plank stayed level. Two islands that touch sleep together from
+    /// then on, so the touch wakes the sleeper once.
+    pub fn touched_sleepers(&self) -> &[usize] {
+        &self.touched_sleepers
     }
 }
 
@@ -104,14 +119,22 @@ pub fn settle(
         Some((i, POSITION_SLEEP_FACTOR * moved / dt, b.mass))
     });
     islands.reset(bodies.len());
-    let touched = &mut islands.touched;
+    let (touched, touched_sleepers) = (&mut islands.touched, &mut islands.touched_sleepers);
+    let view = &*bodies;
     let touching = touching.inspect(|&(i, j)| {
-        if i != GROUND {
-            touched[i] = true;
-        }
         touched[j] = true;
+        if i == GROUND {
+            return;
+        }
+        touched[i] = true;
+        let sleeps = |k: usize| view[k].asleep && view[k].is_dynamic();
+        match (view[i].is_awake(), view[j].is_awake()) {
+            (true, false) if sleeps(j) => touched_sleepers.push(j),
+            (false, true) if sleeps(i) => touched_sleepers.push(i),
+            _ => {}
+        }
     });
-    for (i, j) in links(bodies, constraints, touching) {
+    for (i, j) in links(view, constraints, touching) {
         islands.sets.join(i, j);
     }
     // Each island's mass and twice its kinetic energy (of the speeds above); each body's root
@@ -151,6 +174,12 @@ pub fn settle(
             b.angular_velocity = glam::DVec3::ZERO;
         }
     }
+    // A touch joined the sleeper to its toucher's island: if that island fell asleep too, the
+    // two sleep together and the touch wakes nothing.
+    let (sets, least) = (&mut islands.sets, &islands.least);
+    islands
+        .touched_sleepers
+        .retain(|&j| least[sets.root(j)] < TIME_TO_SLEEP);
 }
 
 /// Wakes the sleeping islands of `seeds` (every sleeping body joined to one by touching
@@ -207,27 +236,6 @@ pub fn disturbed(
         wake((c.body1, c.body2), &RigidBody::is_awake);
     }
     out
-}
-
-/// Sleeping bodies that an awake body touched in `manifolds` (the last step's), at any speed.
-/// A touch links the two islands, as a contact that begins touching links and wakes them in
-/// Box2D v3 (`b2LinkContact`): without it a body that crept into a sleeper (slower than the
-/// sleep speed, so [`disturbed`] passes it over) met a wall, and a box set gently on the end of
-/// a sleeping plank balanced on a support rested there while the plank stayed level. Two
-/// islands that touch sleep together from then on, so the touch wakes the sleeper once.
-pub fn touched_sleepers<'a>(
-    bodies: &'a [RigidBody],
-    manifolds: &'a [Manifold],
-) -> impl Iterator<Item = usize> + 'a {
-    let asleep = |i: usize| i < bodies.len() && bodies[i].asleep && bodies[i].is_dynamic();
-    let awake = |i: usize| i < bodies.len() && bodies[i].is_awake();
-    touching_pairs(manifolds)
-        .filter(|&(i, _)| i != GROUND)
-        .filter_map(move |(i, j)| match (awake(i), awake(j)) {
-            (true, false) => asleep(j).then_some(j),
-            (false, true) => asleep(i).then_some(i),
-            _ => None,
-        })
 }
 
 /// The pairs of `manifolds` whose points hold the bodies together (touching, not merely
