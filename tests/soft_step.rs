@@ -1148,17 +1148,17 @@ fn a_restored_snapshot_repeats_a_touch_that_wakes() {
         let pose = |b: &RigidBody| (b.position, b.orientation, b.asleep);
         w.bodies.iter().map(pose).collect()
     };
+    let three = |w: &mut World| -> Vec<_> {
+        (0..3)
+            .map(|_| {
+                w.step();
+                state(w)
+            })
+            .collect()
+    };
     let mut woke = false;
     for _ in 0..6 {
         let snapshot = world.snapshot();
-        let mut three = |w: &mut World| -> Vec<_> {
-            (0..3)
-                .map(|_| {
-                    w.step();
-                    state(w)
-                })
-                .collect()
-        };
         let ahead = three(&mut world);
         woke |= ahead.iter().any(|s| !s[1].2);
         world.restore(&snapshot);
