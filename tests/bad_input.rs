@@ -636,6 +636,10 @@ fn cli_names_the_setting_a_negative_value_breaks() {
             "--restitution-threshold",
             "--restitution-threshold must be non-negative, got -1",
         ),
+        (
+            "--full-substeps-from",
+            "--full-substeps-from must be a non-negative number of seconds, got -1",
+        ),
     ] {
         let args = ["run", "pile-20", "--steps", "1", flag, "-1"].map(os);
         cli_fails_saying(&args, words);

@@ -52,6 +52,31 @@ fn json_summary_has_the_documented_fields() {
 /// the most a scene with distance constraints is raised to, are 1/40 s long: after 37 steps
 /// its links turn too far within one for the projections' rounds) is reported as such in
 /// the JSON summary; a rope the step holds reports none, in words.
+/// `--accurate` takes four substeps a step from dt 0.01 up and two at dt 0.005 (the mixed
+/// scene's first tenth of a second: nothing touches yet, and no constraint raises the count);
+/// `--full-substeps-from 0` keeps all four.
+#[test]
+fn short_steps_take_fewer_substeps_unless_told_otherwise() {
+    let substeps = |extra: &[&str]| {
+        let mut args = vec!["run", "mixed", "--accurate", "--json"];
+        args.extend_from_slice(extra);
+        let out = succeeded(tumble().args(&args));
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        v["substeps_taken"].as_u64().unwrap()
+    };
+    assert_eq!(substeps(&["--dt", "0.01", "--steps", "10"]), 40);
+    assert_eq!(substeps(&["--dt", "0.005", "--steps", "20"]), 40);
+    let all = [
+        "--dt",
+        "0.005",
+        "--steps",
+        "20",
+        "--full-substeps-from",
+        "0",
+    ];
+    assert_eq!(substeps(&all), 80);
+}
+
 #[test]
 fn joint_projections_cut_short_are_reported() {
     let run = |scene: &str, steps: &str, json: bool| {
