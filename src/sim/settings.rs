@@ -129,8 +129,8 @@ pub struct Settings {
     /// step takes proportionally fewer, down to half of them, so that its substeps stay about
     /// as long as at this length rather than shrinking with the step (0: always `substeps`).
     /// The preset's 0.01 takes two substeps at dt 0.005 (1/400 s each, as at dt 0.01) and two
-    /// at 0.0025, at about half the time of four, with errors still below Rapier's
-    /// (docs/accuracy.md). The coursework solver ignores it.
+    /// at 0.0025, at about half the time of four, with errors still below Rapier's wherever
+    /// they were below it (docs/accuracy.md). The coursework solver ignores it.
     pub full_substeps_from: f64,
     pub rotation_integrator: RotationIntegrator,
     /// Islands that stay slower than the sleep threshold for half a second sleep until
