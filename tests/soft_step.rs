@@ -1114,10 +1114,9 @@ fn plank_on_support(sleep: bool) -> World {
     )
 }
 
-/// The plank's tilt (radians) 3 s after the box is set gently on its end (awake, at rest,
-/// touching, as a body that crept there would be) once plank and box rest (asleep when
-/// sleeping is on).
-fn tilt_under_a_box_set_on_the_end(sleep: bool) -> f64 {
+/// [`plank_on_support`] after plank and box rest (asleep when sleeping is on), the box just
+/// set gently on the plank's end: awake, at rest, touching, as a body that crept there would be.
+fn box_set_on_the_plank_end(sleep: bool) -> World {
     let mut world = plank_on_support(sleep);
     for _ in 0..100 {
         world.step();
@@ -1126,6 +1125,12 @@ fn tilt_under_a_box_set_on_the_end(sleep: bool) -> f64 {
     let b = &mut world.bodies[2];
     b.position = DVec3::new(3.5, 1.4 + 0.5, 0.0);
     (b.asleep, b.moving, b.sleep_time) = (false, false, 0.0);
+    world
+}
+
+/// The plank's tilt (radians) 3 s after the box is set on its end.
+fn tilt_under_a_box_set_on_the_end(sleep: bool) -> f64 {
+    let mut world = box_set_on_the_plank_end(sleep);
     for _ in 0..150 {
         world.step();
     }
@@ -1137,13 +1142,7 @@ fn tilt_under_a_box_set_on_the_end(sleep: bool) -> f64 {
 /// restored: the touch that wakes the plank is in the state between steps.
 #[test]
 fn a_restored_snapshot_repeats_a_touch_that_wakes() {
-    let mut world = plank_on_support(true);
-    for _ in 0..100 {
-        world.step();
-    }
-    let b = &mut world.bodies[2];
-    b.position = DVec3::new(3.5, 1.4 + 0.5, 0.0);
-    (b.asleep, b.moving, b.sleep_time) = (false, false, 0.0);
+    let mut world = box_set_on_the_plank_end(true);
     let state = |w: &World| -> Vec<(DVec3, DQuat, bool)> {
         let pose = |b: &RigidBody| (b.position, b.orientation, b.asleep);
         w.bodies.iter().map(pose).collect()
