@@ -1295,11 +1295,13 @@ fn trajectory(world: &mut World, steps: usize) -> Vec<f64> {
 
 #[test]
 fn results_do_not_depend_on_the_thread_count() {
-    // pile-1000 has colours of more than 256 contacts, which are solved in parallel; chain-1000
-    // has 100 chains, whose joint groups are solved in parallel. At dt 0.04 the steps with
+    // pile-1000 has colours of more than 256 contacts, which are solved in parallel; scatter-1000
+    // hundreds of small islands, solved in batches in parallel; chain-1000 has 100 chains, whose
+    // joint groups are solved in parallel. At dt 0.04 the steps with
     // contacts take eight substeps and the others four.
     for (scene, steps, dt) in [
         ("pile-120", 150, 0.02),
+        ("scatter-1000", 150, 0.02),
         ("pile-1000", 80, 0.02),
         ("pile-1000", 60, 0.04),
         ("chain-1000", 60, 0.02),

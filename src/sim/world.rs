@@ -142,6 +142,12 @@ impl World {
         stats
     }
 
+    /// The soft-step solver's state (for tests of its parts).
+    #[cfg(test)]
+    pub(crate) fn soft_step_mut(&mut self) -> &mut SoftStep {
+        &mut self.soft_step
+    }
+
     /// The soft-step solver: collide once, solve and integrate in substeps, then the pose check.
     fn soft_step(&mut self, ctx: &StepContext) -> StepStats {
         let mut stats = StepStats::default();

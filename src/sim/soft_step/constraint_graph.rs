@@ -63,6 +63,15 @@ impl Colours {
         self.reorder(manifolds, &counts);
     }
 
+    /// `len` constraints in one run, solved in their order on one thread, as the overflow run
+    /// is: a batch of small islands copied out of the step's (see [`super::island_batch`]),
+    /// in the colouring's order.
+    pub fn sequential(&mut self, len: usize) {
+        self.runs.clear();
+        self.runs.extend((len > 0).then_some(0..len));
+        self.overflow = len > 0;
+    }
+
     /// Stable counting sort of the manifolds by colour, in place: each manifold's place is
     /// counted first, then the permutation is applied cycle by cycle (4 bytes of scratch per
     /// manifold instead of a second copy of them).

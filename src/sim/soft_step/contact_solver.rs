@@ -177,6 +177,17 @@ impl ContactConstraint {
         first..first + self.count as usize
     }
 
+    /// The same constraint between solver bodies `body1` and `body2`, its points from `first`:
+    /// where a batch of islands copied into a workspace of its own finds them, and back.
+    pub fn relocated(&self, (body1, body2): (usize, usize), first: usize) -> Self {
+        Self {
+            body1: body1 as u32,
+            body2: body2 as u32,
+            first: first as u32,
+            ..*self
+        }
+    }
+
     /// The softness of its biased pass: contacts with a static or sleeping body are stiffer.
     fn softness(&self, b1: &SolverBody, b2: &SolverBody, params: &ContactParams) -> Softness {
         if b1.inverse_mass == 0.0 || b2.inverse_mass == 0.0 {
@@ -715,18 +726,6 @@ impl HeldImpulses {
     }
 }
 
-/// Runs `f` on every contact constraint with its points and its two solver bodies, colour by
-/// colour (see [`Colours::for_each`]).
-fn for_each_contact(
-    colours: &Colours,
-    constraints: &mut [ContactConstraint],
-    points: &mut [ContactPoint],
-    bodies: &mut [SolverBody],
-    f: impl Fn(&mut ContactConstraint, &mut [ContactPoint], &mut SolverBody, &mut SolverBody) + Sync,
-) {
-    for_each_contact_in(colours, None, (constraints, points), bodies, f);
-}
-
 /// [`for_each_contact`] on the `selected` constraints (increasing indices) only, or on all: the
 /// one place the colouring's disjointness is relied on.
 pub fn for_each_contact_in(
@@ -755,14 +754,15 @@ pub fn for_each_contact_in(
     }
 }
 
-/// Applies the accumulated impulses (warm starting), once per substep.
+/// Applies the accumulated impulses (warm starting), once per substep, of the `selected`
+/// constraints or all.
 pub fn warm_start(
     colours: &Colours,
-    constraints: &mut [ContactConstraint],
-    points: &mut [ContactPoint],
+    selected: Option<&[u32]>,
+    contacts: (&mut [ContactConstraint], &mut [ContactPoint]),
     bodies: &mut [SolverBody],
 ) {
-    for_each_contact(colours, constraints, points, bodies, |c, points, b1, b2| {
+    for_each_contact_in(colours, selected, contacts, bodies, |c, points, b1, b2| {
         for p in points.iter() {
             p.along_normal(c.normal)
                 .apply(c.normal, p.normal_impulse, b1, b2);
@@ -775,17 +775,18 @@ pub fn warm_start(
     });
 }
 
-/// One Gauss-Seidel pass over the contacts. In the soft pass penetration is corrected softly
-/// (at most `max_push` speed); in the others the velocities are made rigid. A point still apart
-/// may close its gap within the substep but no more (speculative contact).
+/// One Gauss-Seidel pass over the contacts (the `selected` ones, or all). In the soft pass
+/// penetration is corrected softly (at most `max_push` speed); in the others the velocities are
+/// made rigid. A point still apart may close its gap within the substep but no more
+/// (speculative contact).
 pub fn solve(
-    colours: &Colours,
-    (constraints, points): (&mut [ContactConstraint], &mut [ContactPoint]),
+    (colours, selected): (&Colours, Option<&[u32]>),
+    contacts: (&mut [ContactConstraint], &mut [ContactPoint]),
     bodies: &mut [SolverBody],
     params: &ContactParams,
     (inv_h, pass, max_push): (f64, Pass, f64),
 ) {
-    for_each_contact(colours, constraints, points, bodies, |c, points, b1, b2| {
+    for_each_contact_in(colours, selected, contacts, bodies, |c, points, b1, b2| {
         on_copies(b1, b2, |b1, b2| {
             let soft = match pass {
                 Pass::Soft => c.softness(b1, b2, params),

@@ -9,11 +9,16 @@
 //!   ([`contact_solver`], [`joint_solver`], [`softness`]);
 //! - then one restitution pass that gives each bouncing point `e^2` of the energy it arrived
 //!   with, measured in the invariant of the integrator (exact apex ratios at any step).
+//!
+//! Large islands are solved colour by colour on all threads ([`constraint_graph`]); small ones
+//! (up to 64 manifolds) in batches, each through all its substeps while its rows are in cache
+//! ([`island_batch`]), with the same bits.
 
 pub mod constraint_graph;
 pub mod contact_solver;
 pub mod disjoint_sets;
 pub mod envelope;
+mod island_batch;
 pub mod joint_block;
 pub mod joint_solver;
 pub mod manifold;
@@ -97,6 +102,8 @@ pub struct SoftStep {
     /// groups made again, or a restored snapshot, see the same.
     relaxed_joints: Vec<bool>,
     islands: sleep::Islands,
+    /// The step's small islands, solved in batches of their own.
+    small_islands: island_batch::SmallIslands,
     /// Sleeping bodies an awake body touched in the last step: the next step wakes them.
     touched_sleepers: Vec<usize>,
     /// The settings of the last step: a change wakes every sleeping body.
@@ -106,6 +113,8 @@ pub struct SoftStep {
     /// Doublings of a jointed scene's substeps since its joint projections were cut short
     /// (see [`joint_substeps`]).
     joint_boost: u32,
+    /// Every island solved colour by colour, none in batches (for tests: the same bits).
+    by_colour_only: bool,
     work: Workspace,
 }
 
@@ -132,6 +141,12 @@ struct Workspace {
     solved: Vec<usize>,
     /// The awake ones among `solved`: those the substeps integrate.
     moving: Vec<usize>,
+    /// Those of `moving` the substep program integrates: all but the small islands' (see
+    /// [`island_batch`]).
+    solving: Vec<usize>,
+    /// The contact constraints the substep program solves (ascending): all where `None`, else
+    /// those not in a small island.
+    selected: Option<Vec<u32>>,
     /// Marks of `solved` by body index.
     in_solver: Vec<bool>,
     /// Awake bodies that nothing touches or holds: integrated on their own, in parallel.
@@ -439,7 +454,7 @@ impl SoftStep {
         watch.enter(Stage::Solve);
         // With no manifold, constraint or grab every body is free: the passes would find none.
         if !self.work.solved.is_empty() {
-            self.solve_substeps(ctx, &mut scene, &substeps, &kicks);
+            self.solve(ctx, &mut scene, &substeps, &kicks);
         }
         watch.enter(Stage::SolveFinish);
         stats.joint_projections_cut_short = self.blocks.take_cut_short();
@@ -451,33 +466,28 @@ impl SoftStep {
         self.blocks.take_cycled(&mut self.relaxed_joints);
     }
 
-    /// The solved bodies' substeps between the half kicks, then the final pass.
-    fn solve_substeps(
-        &mut self,
-        ctx: &StepContext,
-        scene: &mut Scene,
-        substeps: &Substeps,
-        kicks: &Kicks,
-    ) {
-        self.work.kick(kicks.half);
-        for k in 0..substeps.count {
-            if k > 0 {
-                self.work.kick(kicks.full);
-            }
-            if let Some(grab) = scene.grab {
-                pull(grab, scene.bodies, &mut self.work.bodies, substeps.h);
-            }
-            if k == 0 {
-                self.work.hold_back(0.5);
-            }
-            let last = k + 1 == substeps.count;
-            self.substep(ctx, (scene.bodies, scene.start), substeps, last);
-            if k == 0 {
-                self.work.release();
-            }
+    /// The solved bodies' substeps: the large islands' colour by colour, then the small ones'
+    /// in batches (see [`island_batch`]). The two share no moving body, contact or point, so
+    /// the order between them changes no bit.
+    fn solve(&mut self, ctx: &StepContext, scene: &mut Scene, substeps: &Substeps, kicks: &Kicks) {
+        let w = &mut self.work;
+        if !w.solving.is_empty() || w.selected.as_ref().is_none_or(|s| !s.is_empty()) {
+            let mut solver = Solver {
+                work: &mut *w,
+                blocks: &mut self.blocks,
+                joint_sides: &mut self.joint_sides,
+            };
+            let bodies = (&mut *scene.bodies, &*scene.start);
+            solver.solve_substeps(ctx, bodies, scene.grab, substeps, kicks);
         }
-        self.work.kick(kicks.half);
-        self.final_pass(scene.bodies, substeps);
+        let arrays = island_batch::Arrays {
+            bodies: &mut *scene.bodies,
+            start: &*scene.start,
+            solver_bodies: &mut w.bodies,
+            contacts: &mut w.contacts,
+            points: &mut w.points,
+        };
+        self.small_islands.solve(ctx, arrays, substeps, kicks);
     }
 
     /// Wakes everything when sleeping is off or the settings changed, and the grabbed body's
@@ -676,103 +686,14 @@ impl SoftStep {
             &work.large_groups,
             &self.joint_impulses,
         ));
-    }
-
-    /// Warm start, the soft pass, new poses, joints projected (in the `last` substep), the relax
-    /// pass.
-    ///
-    /// The joint groups' positions are projected onto their bounds once per step, after the
-    /// last drift, and in earlier substeps only where a row is far out (see
-    /// [`MIDSTEP_PROJECTION_TOLERANCE`]): a projection moves poses without the velocity that
-    /// would move them, and so takes energy with every correction; between projections the
-    /// soft joint rows hold the bounds. Measured (`bench accuracy`, dt 0.04 ... 0.0025):
-    /// projecting in every substep, the pendulum lost 6.6e-4 ... 4.1e-5 of its amplitude in
-    /// 20 s (Rapier's rope: 6.7e-4 ... 4.1e-5); once per step, 1.7e-4 ... 1.0e-5, with the
-    /// chains' worst stretch 1.2e-4 of the rest length at dt 0.04 (3.5e-5 before) and a
-    /// quarter fewer group solves; never, at most 2.4e-6, but the chains stretched by 1e-2.
-    fn substep(
-        &mut self,
-        ctx: &StepContext,
-        (bodies, start): (&mut [RigidBody], &[(DVec3, DQuat)]),
-        substeps: &Substeps,
-        last: bool,
-    ) {
-        let w = &mut self.work;
-        joint_solver::warm_start(&w.rows, bodies, &mut w.bodies);
-        contact_solver::warm_start(&w.colours, &mut w.contacts, &mut w.points, &mut w.bodies);
-        self.solve_pass(bodies, substeps, Pass::Soft);
-        let w = &mut self.work;
-        w.integrate_positions(ctx, (bodies, start), substeps.h);
-        let tolerance = if last {
-            0.0
-        } else {
-            MIDSTEP_PROJECTION_TOLERANCE
-        };
-        if self
-            .blocks
-            .project_positions((bodies, &w.bodies), &mut self.joint_sides, tolerance)
-        {
-            w.update_deltas(bodies, start);
-        }
-        self.relax(bodies, substeps, Pass::Relax);
-    }
-
-    /// One pass over joints then contacts.
-    ///
-    /// The relax pass leaves the joint groups solved directly alone. Their solve is exact: it
-    /// projects the velocities onto the held rows' targets (`v - M^-1 J^T K^-1 (J v - b)`),
-    /// and the next pass at the same poses (the next substep's soft pass, or the final pass)
-    /// projects again, so a projection between them changes nothing while the same rows are
-    /// held (`P_b(P_0(v) + dv) = P_b(v + dv)` for the kick `dv` between them). Measured
-    /// (`bench accuracy`): the pendulum's period and amplitude errors the same to 9 digits at
-    /// every dt, the chains' worst stretch the same or lower (1.49e-6 -> 1.31e-6 at dt 0.04,
-    /// 1.0e-8 -> 5.6e-9 at 0.0025), a chain step a tenth cheaper.
-    fn solve_pass(&mut self, bodies: &[RigidBody], substeps: &Substeps, pass: Pass) {
-        let (w, inv_h, soft) = (&mut self.work, substeps.inv_h, substeps.joint_softness);
-        let biased = pass == Pass::Soft;
-        if pass != Pass::Relax {
-            self.blocks.solve_velocities(
-                (bodies, &mut w.bodies),
-                &mut self.joint_sides,
-                inv_h,
-                biased.then_some(MAX_PUSH_SPEED),
-            );
-        }
-        joint_solver::solve(
-            &mut w.rows,
-            bodies,
-            &mut w.bodies,
-            soft,
-            inv_h,
-            biased,
-            MAX_PUSH_SPEED,
+        // Small islands are batched where the program's bodies are the contacts' alone.
+        let batching = constraints.is_empty() && scene.grab.is_none() && !self.by_colour_only;
+        self.small_islands.find(
+            (&work.manifolds, &work.moving),
+            bodies.len(),
+            batching,
+            (&mut work.solving, &mut work.selected),
         );
-        contact_solver::solve(
-            &w.colours,
-            (&mut w.contacts, &mut w.points),
-            &mut w.bodies,
-            &substeps.contact,
-            (inv_h, pass, MAX_PUSH_SPEED),
-        );
-    }
-
-    /// Passes without position correction: the velocities made rigid (see
-    /// [`Substeps::relax_passes`]).
-    fn relax(&mut self, bodies: &[RigidBody], substeps: &Substeps, pass: Pass) {
-        for _ in 0..substeps.relax_passes {
-            self.solve_pass(bodies, substeps, pass);
-        }
-    }
-
-    /// A rigid pass after the last half kick, warm-started with half of every accumulated
-    /// impulse (the support that half kick needs), so a resting stack ends the step at rest.
-    fn final_pass(&mut self, bodies: &[RigidBody], substeps: &Substeps) {
-        let w = &mut self.work;
-        w.hold_back(0.5);
-        joint_solver::warm_start(&w.rows, bodies, &mut w.bodies);
-        contact_solver::warm_start(&w.colours, &mut w.contacts, &mut w.points, &mut w.bodies);
-        self.relax(bodies, substeps, Pass::Final);
-        self.work.release();
     }
 
     /// Restitution with its energy rule, velocities back into the bodies, impulses kept.
@@ -847,9 +768,169 @@ impl SoftStep {
         stats.manifold_points = w.points.len();
     }
 
+    /// From now on every island is solved colour by colour, none in batches.
+    #[cfg(test)]
+    pub(crate) fn solve_by_colour_only(&mut self) {
+        self.by_colour_only = true;
+    }
+
+    /// The last step's manifolds solved in batches of small islands, and colour by colour.
+    #[cfg(test)]
+    pub(crate) fn batched_and_coloured(&self) -> (usize, usize) {
+        let w = &self.work;
+        let coloured = w.selected.as_ref().map_or(w.contacts.len(), Vec::len);
+        (w.contacts.len() - coloured, coloured)
+    }
+
     /// The manifolds of the last step (for display).
     pub fn manifolds(&self) -> &[Manifold] {
         &self.work.manifolds
+    }
+}
+
+/// The substep program (kicks, warm starts, passes, drifts, the final pass) over one
+/// workspace: the step's, colour by colour, or a batch of small islands copied into one of
+/// its own ([`island_batch`]).
+struct Solver<'a> {
+    work: &'a mut Workspace,
+    blocks: &'a mut JointBlocks,
+    joint_sides: &'a mut HeldSides,
+}
+
+impl Solver<'_> {
+    /// The solved bodies' substeps between the half kicks, then the final pass.
+    fn solve_substeps(
+        &mut self,
+        ctx: &StepContext,
+        (bodies, start): (&mut [RigidBody], &[(DVec3, DQuat)]),
+        grab: Option<&Grab>,
+        substeps: &Substeps,
+        kicks: &Kicks,
+    ) {
+        self.work.kick(kicks.half);
+        for k in 0..substeps.count {
+            if k > 0 {
+                self.work.kick(kicks.full);
+            }
+            if let Some(grab) = grab {
+                pull(grab, bodies, &mut self.work.bodies, substeps.h);
+            }
+            if k == 0 {
+                self.work.hold_back(0.5);
+            }
+            let last = k + 1 == substeps.count;
+            self.substep(ctx, (bodies, start), substeps, last);
+            if k == 0 {
+                self.work.release();
+            }
+        }
+        self.work.kick(kicks.half);
+        self.final_pass(bodies, substeps);
+    }
+
+    /// Warm start, the soft pass, new poses, joints projected (in the `last` substep), the relax
+    /// pass.
+    ///
+    /// The joint groups' positions are projected onto their bounds once per step, after the
+    /// last drift, and in earlier substeps only where a row is far out (see
+    /// [`MIDSTEP_PROJECTION_TOLERANCE`]): a projection moves poses without the velocity that
+    /// would move them, and so takes energy with every correction; between projections the
+    /// soft joint rows hold the bounds. Measured (`bench accuracy`, dt 0.04 ... 0.0025):
+    /// projecting in every substep, the pendulum lost 6.6e-4 ... 4.1e-5 of its amplitude in
+    /// 20 s (Rapier's rope: 6.7e-4 ... 4.1e-5); once per step, 1.7e-4 ... 1.0e-5, with the
+    /// chains' worst stretch 1.2e-4 of the rest length at dt 0.04 (3.5e-5 before) and a
+    /// quarter fewer group solves; never, at most 2.4e-6, but the chains stretched by 1e-2.
+    fn substep(
+        &mut self,
+        ctx: &StepContext,
+        (bodies, start): (&mut [RigidBody], &[(DVec3, DQuat)]),
+        substeps: &Substeps,
+        last: bool,
+    ) {
+        let w = &mut self.work;
+        joint_solver::warm_start(&w.rows, bodies, &mut w.bodies);
+        let (contacts, selected) = (
+            (&mut w.contacts[..], &mut w.points[..]),
+            w.selected.as_deref(),
+        );
+        contact_solver::warm_start(&w.colours, selected, contacts, &mut w.bodies);
+        self.solve_pass(bodies, substeps, Pass::Soft);
+        let w = &mut self.work;
+        w.integrate_positions(ctx, (bodies, start), substeps.h);
+        let tolerance = if last {
+            0.0
+        } else {
+            MIDSTEP_PROJECTION_TOLERANCE
+        };
+        if self
+            .blocks
+            .project_positions((bodies, &w.bodies), self.joint_sides, tolerance)
+        {
+            w.update_deltas(bodies, start);
+        }
+        self.relax(bodies, substeps, Pass::Relax);
+    }
+
+    /// One pass over joints then contacts.
+    ///
+    /// The relax pass leaves the joint groups solved directly alone. Their solve is exact: it
+    /// projects the velocities onto the held rows' targets (`v - M^-1 J^T K^-1 (J v - b)`),
+    /// and the next pass at the same poses (the next substep's soft pass, or the final pass)
+    /// projects again, so a projection between them changes nothing while the same rows are
+    /// held (`P_b(P_0(v) + dv) = P_b(v + dv)` for the kick `dv` between them). Measured
+    /// (`bench accuracy`): the pendulum's period and amplitude errors the same to 9 digits at
+    /// every dt, the chains' worst stretch the same or lower (1.49e-6 -> 1.31e-6 at dt 0.04,
+    /// 1.0e-8 -> 5.6e-9 at 0.0025), a chain step a tenth cheaper.
+    fn solve_pass(&mut self, bodies: &[RigidBody], substeps: &Substeps, pass: Pass) {
+        let (w, inv_h, soft) = (&mut self.work, substeps.inv_h, substeps.joint_softness);
+        let biased = pass == Pass::Soft;
+        if pass != Pass::Relax {
+            self.blocks.solve_velocities(
+                (bodies, &mut w.bodies),
+                self.joint_sides,
+                inv_h,
+                biased.then_some(MAX_PUSH_SPEED),
+            );
+        }
+        joint_solver::solve(
+            &mut w.rows,
+            bodies,
+            &mut w.bodies,
+            soft,
+            inv_h,
+            biased,
+            MAX_PUSH_SPEED,
+        );
+        contact_solver::solve(
+            (&w.colours, w.selected.as_deref()),
+            (&mut w.contacts, &mut w.points),
+            &mut w.bodies,
+            &substeps.contact,
+            (inv_h, pass, MAX_PUSH_SPEED),
+        );
+    }
+
+    /// Passes without position correction: the velocities made rigid (see
+    /// [`Substeps::relax_passes`]).
+    fn relax(&mut self, bodies: &[RigidBody], substeps: &Substeps, pass: Pass) {
+        for _ in 0..substeps.relax_passes {
+            self.solve_pass(bodies, substeps, pass);
+        }
+    }
+
+    /// A rigid pass after the last half kick, warm-started with half of every accumulated
+    /// impulse (the support that half kick needs), so a resting stack ends the step at rest.
+    fn final_pass(&mut self, bodies: &[RigidBody], substeps: &Substeps) {
+        let w = &mut self.work;
+        w.hold_back(0.5);
+        joint_solver::warm_start(&w.rows, bodies, &mut w.bodies);
+        let (contacts, selected) = (
+            (&mut w.contacts[..], &mut w.points[..]),
+            w.selected.as_deref(),
+        );
+        contact_solver::warm_start(&w.colours, selected, contacts, &mut w.bodies);
+        self.relax(bodies, substeps, Pass::Final);
+        self.work.release();
     }
 }
 
@@ -968,7 +1049,7 @@ fn integrate_free(
 impl Workspace {
     /// Adds `dv` to the velocity of every body the substeps integrate.
     fn kick(&mut self, dv: DVec3) {
-        for_each_indexed(&self.moving, &mut self.bodies, |_, sb| {
+        for_each_indexed(&self.solving, &mut self.bodies, |_, sb| {
             sb.linear_velocity += dv;
         });
     }
@@ -994,7 +1075,7 @@ impl Workspace {
         h: f64,
     ) {
         let (integrator, turns_inertia) = (ctx.settings.rotation_integrator, self.turns_inertia);
-        for_each_indexed2(&self.moving, bodies, &mut self.bodies, |i, body, sb| {
+        for_each_indexed2(&self.solving, bodies, &mut self.bodies, |i, body, sb| {
             let (p0, q0) = start[i];
             body.linear_velocity = sb.linear_velocity;
             body.angular_velocity = sb.angular_velocity;
@@ -1011,7 +1092,7 @@ impl Workspace {
     }
 
     fn update_deltas(&mut self, bodies: &mut [RigidBody], start: &[(DVec3, DQuat)]) {
-        for_each_indexed2(&self.moving, bodies, &mut self.bodies, |i, body, sb| {
+        for_each_indexed2(&self.solving, bodies, &mut self.bodies, |i, body, sb| {
             let (p0, q0) = start[i];
             sb.delta_position = body.position - p0;
             sb.delta_rotation = manifold::delta_rotation(q0, body.orientation);
