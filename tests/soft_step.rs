@@ -1345,6 +1345,31 @@ fn shared_passes_give_the_bits_of_one_thread() {
     }
 }
 
+/// Small islands solved in batches on two threads give the bits of one: 144 boxes resting
+/// apart on the ground are 144 islands of one manifold each, in two batches (of up to 128
+/// manifolds), one per thread, so that the batches' copies through `constraint_graph::Shared`
+/// can run under Miri too (the command above, with `batches_on_threads`).
+#[test]
+fn batches_on_threads_give_the_bits_of_one_thread() {
+    let shape = Shape::from_tet_mesh(&assets::cuboid(DVec3::splat(0.5))).unwrap();
+    let bodies: Vec<RigidBody> = (0..144)
+        .map(|k| {
+            let at = DVec3::new(3.0 * (k % 12) as f64, 0.5, 3.0 * (k / 12) as f64);
+            let turn = DQuat::from_rotation_y(0.1 * k as f64);
+            RigidBody::on_shape(&shape, 0, 1.0, false, at, turn)
+        })
+        .collect();
+    let run = |threads| {
+        common::with_threads(threads, || {
+            let (shapes, names) = (vec![shape.clone()], vec!["box".to_string()]);
+            let settings = accurate(0.02);
+            let mut world = World::new(shapes, names, bodies.clone(), Vec::new(), settings);
+            trajectory(&mut world, 2)
+        })
+    };
+    assert!(run(1) == run(2), "1 and 2 threads differ");
+}
+
 #[test]
 fn the_coursework_solver_ignores_the_soft_step_settings() {
     for scene in ["mixed", "two-chain"] {

@@ -726,8 +726,9 @@ impl HeldImpulses {
     }
 }
 
-/// [`for_each_contact`] on the `selected` constraints (increasing indices) only, or on all: the
-/// one place the colouring's disjointness is relied on.
+/// Runs `f` on every contact constraint (or the `selected` ones, increasing indices) with its
+/// points and its two solver bodies, colour by colour (see [`Colours::for_each`]): the one
+/// place the colouring's disjointness is relied on.
 pub fn for_each_contact_in(
     colours: &Colours,
     selected: Option<&[u32]>,
