@@ -167,30 +167,21 @@ impl SmallIslands {
         }
     }
 
-    /// The batch of island `island` ([`NONE`] for none).
-    fn batch_of_island(&self, island: u32) -> u32 {
-        match island {
-            NONE => NONE,
-            i => self.batch_of[i as usize],
-        }
-    }
-
-    /// Each batch's manifolds in ascending order (a counting sort by batch); returns the others.
+    /// Each batch's manifolds in ascending order; returns the others.
     fn sort_manifolds(&mut self) -> Vec<u32> {
-        let mut next = counts_to_ends(&mut self.manifold_ends);
-        self.manifolds.clear();
-        self.manifolds
-            .resize(*self.manifold_ends.last().unwrap_or(&0), 0);
+        let batch_of = &self.batch_of;
+        let batch = |island: u32| match island {
+            NONE => NONE,
+            i => batch_of[i as usize],
+        };
+        let items = (self.island_of.iter().enumerate()).map(|(k, &i)| (batch(i), k as u32));
         let mut rest = Vec::new();
-        for (k, &island) in self.island_of.iter().enumerate() {
-            match self.batch_of_island(island) {
-                NONE => rest.push(k as u32),
-                b => {
-                    self.manifolds[next[b as usize]] = k as u32;
-                    next[b as usize] += 1;
-                }
-            }
-        }
+        group_by_batch(
+            items,
+            &mut self.manifold_ends,
+            &mut self.manifolds,
+            &mut rest,
+        );
         rest
     }
 
@@ -202,20 +193,12 @@ impl SmallIslands {
         for &i in moving {
             let batch = self.batch_of[self.sets.root(i)];
             self.island_of.push(batch);
-            match batch {
-                NONE => rest.push(i),
-                b => self.body_ends[b as usize] += 1,
+            if batch != NONE {
+                self.body_ends[batch as usize] += 1;
             }
         }
-        let mut next = counts_to_ends(&mut self.body_ends);
-        self.bodies.clear();
-        self.bodies.resize(*self.body_ends.last().unwrap_or(&0), 0);
-        for (&i, &b) in moving.iter().zip(&self.island_of) {
-            if b != NONE {
-                self.bodies[next[b as usize]] = i;
-                next[b as usize] += 1;
-            }
-        }
+        let items = self.island_of.iter().copied().zip(moving.iter().copied());
+        group_by_batch(items, &mut self.body_ends, &mut self.bodies, rest);
     }
 
     /// Batch `k`'s manifolds and moving bodies.
@@ -263,16 +246,33 @@ impl SmallIslands {
     }
 }
 
-/// Turns counts into running ends in place; returns the starts.
-fn counts_to_ends(counts: &mut [usize]) -> Vec<usize> {
-    let mut starts = Vec::with_capacity(counts.len());
+/// A counting sort by batch: each `(batch, item)` goes into `out`, grouped by batch in the
+/// items' order, or to `rest` where its batch is [`NONE`]. `ends` holds each batch's count of
+/// items on entry, and where each batch's items end in `out` on return.
+fn group_by_batch<T: Copy + Default>(
+    items: impl Iterator<Item = (u32, T)>,
+    ends: &mut [usize],
+    out: &mut Vec<T>,
+    rest: &mut Vec<T>,
+) {
+    let mut next = Vec::with_capacity(ends.len());
     let mut end = 0;
-    for c in counts.iter_mut() {
-        starts.push(end);
-        end += *c;
-        *c = end;
+    for count in ends.iter_mut() {
+        next.push(end);
+        end += *count;
+        *count = end;
     }
-    starts
+    out.clear();
+    out.resize(end, T::default());
+    for (batch, item) in items {
+        match batch {
+            NONE => rest.push(item),
+            b => {
+                out[next[b as usize]] = item;
+                next[b as usize] += 1;
+            }
+        }
+    }
 }
 
 /// One thread's copy of a batch: its moving bodies first (in the batch's order), then the
