@@ -4,8 +4,9 @@
 //! (scatter-100000: some 60 MB), every pass waits on memory. An island of a few bodies shares
 //! nothing with the others, so its whole substep program can run while its rows are in cache:
 //! the step's small islands are copied, a batch of them at a time, into a workspace of their
-//! own, solved there by the same program ([`Solver`]) and copied back, as the island solvers
-//! of PhysX and Bullet solve one island at a time (Box2D v3 colours everything).
+//! own, solved there by the same program ([`Solver`]) and the same restitution pass
+//! ([`restitution::apply`]) and copied back, as the island solvers of PhysX and Bullet solve
+//! one island at a time (Box2D v3 colours everything).
 //!
 //! The result is the colour-by-colour passes' bits: a batch keeps its constraints in the
 //! colouring's order (ascending index), which within an island is the order the colours'
@@ -17,6 +18,7 @@ use super::contact_solver::{ContactConstraint, ContactPoint};
 use super::disjoint_sets::DisjointSets;
 use super::joint_block::{HeldSides, JointBlocks};
 use super::manifold::{GROUND, Manifold};
+use super::restitution;
 use super::solver_body::SolverBody;
 use super::{Kicks, Solver, Substeps, Workspace};
 use crate::sim::body::RigidBody;
@@ -59,6 +61,8 @@ pub struct SmallIslands {
     /// Workspaces for runs of batches, kept from step to step (made anew in every step they
     /// were grown again: reallocations took 1 % of scatter-10000's step).
     workspaces: Vec<Batch>,
+    /// The batches' constraints with a bounce in the restitution pass (ascending).
+    bouncing: Vec<u32>,
 }
 
 /// The step's arrays a batch is copied from and back into.
@@ -68,6 +72,8 @@ pub struct Arrays<'a> {
     pub solver_bodies: &'a mut [SolverBody],
     pub contacts: &'a mut [ContactConstraint],
     pub points: &'a mut [ContactPoint],
+    /// Each moving body's velocities before the restitution pass (written back).
+    pub before_restitution: &'a mut [(DVec3, DVec3)],
 }
 
 /// [`Arrays`] shared by the threads solving batches: each batch touches only its own moving
@@ -78,6 +84,7 @@ struct SharedArrays<'a> {
     solver_bodies: Shared<'a, SolverBody>,
     contacts: Shared<'a, ContactConstraint>,
     points: Shared<'a, ContactPoint>,
+    before_restitution: Shared<'a, (DVec3, DVec3)>,
 }
 
 impl SmallIslands {
@@ -93,6 +100,7 @@ impl SmallIslands {
     ) {
         self.manifold_ends.clear();
         self.body_ends.clear();
+        self.bouncing.clear();
         solving.clear();
         *selected = None;
         if batching && !moving.is_empty() {
@@ -210,8 +218,14 @@ impl SmallIslands {
         )
     }
 
-    /// Solves every batch: copied into a workspace of its own, through the substeps, and back;
-    /// on all threads (each batch on one).
+    /// The batches' constraints with a bounce in the last [`SmallIslands::solve`] (ascending;
+    /// none before one in the step).
+    pub fn bouncing(&self) -> &[u32] {
+        &self.bouncing
+    }
+
+    /// Solves every batch: copied into a workspace of its own, through the substeps and the
+    /// restitution pass, and back; on all threads (each batch on one).
     pub fn solve(&mut self, ctx: &StepContext, arrays: Arrays, substeps: &Substeps, kicks: &Kicks) {
         let batches = self.manifold_ends.len();
         if batches == 0 {
@@ -223,6 +237,7 @@ impl SmallIslands {
             solver_bodies: Shared::new(arrays.solver_bodies),
             contacts: Shared::new(arrays.contacts),
             points: Shared::new(arrays.points),
+            before_restitution: Shared::new(arrays.before_restitution),
         };
         // Runs of batches, a few per thread for balance (which runs there are changes no bit).
         let runs = batches.min(RUNS_PER_THREAD * rayon::current_num_threads());
@@ -233,15 +248,23 @@ impl SmallIslands {
             .par_iter_mut()
             .enumerate()
             .for_each(|(r, batch)| {
+                batch.bouncing.clear();
                 for k in batches * r / runs..batches * (r + 1) / runs {
                     let island = this.batch(k);
                     // SAFETY: batches share no moving body, constraint or point (see the module's
                     // documentation), and the static bodies are only read.
                     unsafe { batch.gather(island, &at) };
-                    batch.solve(ctx, substeps, kicks);
+                    batch.solve(ctx, island.0, substeps, kicks);
                     unsafe { batch.scatter(island, &at) };
                 }
             });
+        self.bouncing.clear();
+        for batch in &workspaces {
+            self.bouncing.extend_from_slice(&batch.bouncing);
+        }
+        // Batches are made in the order of their islands' first manifolds, so their bouncing
+        // constraints interleave.
+        self.bouncing.sort_unstable();
         self.workspaces = workspaces;
     }
 }
@@ -287,6 +310,8 @@ struct Batch {
     /// No distance constraints in a batch: empty.
     blocks: JointBlocks,
     joint_sides: HeldSides,
+    /// The step's indices of the constraints with a bounce, of every batch of the run.
+    bouncing: Vec<u32>,
 }
 
 impl Batch {
@@ -334,7 +359,11 @@ impl Batch {
         w.turns_inertia = false;
     }
 
-    fn solve(&mut self, ctx: &StepContext, substeps: &Substeps, kicks: &Kicks) {
+    /// The substeps, then the restitution pass, of the batch of `manifolds` gathered: the
+    /// colour-by-colour pass's bits (see the module's documentation), while the rows are in
+    /// cache (the colours' pass over scatter-100000's bouncing constraints streamed them in
+    /// again eight times).
+    fn solve(&mut self, ctx: &StepContext, manifolds: &[u32], substeps: &Substeps, kicks: &Kicks) {
         let mut solver = Solver {
             work: &mut self.work,
             blocks: &mut self.blocks,
@@ -342,6 +371,22 @@ impl Batch {
         };
         let bodies = (&mut self.bodies[..], &self.start[..]);
         solver.solve_substeps(ctx, bodies, None, substeps, kicks);
+        let w = &mut self.work;
+        w.before_restitution.clear();
+        let moving = &w.bodies[..self.bodies.len()];
+        (w.before_restitution).extend(
+            moving
+                .iter()
+                .map(|b| (b.linear_velocity, b.angular_velocity)),
+        );
+        let settings = &ctx.settings;
+        let bouncing = restitution::apply(
+            (&w.colours, None),
+            (&mut w.contacts, &mut w.points),
+            &mut w.bodies,
+            (settings.restitution, settings.restitution_threshold),
+        );
+        (self.bouncing).extend(bouncing.into_iter().map(|k| manifolds[k as usize]));
     }
 
     /// Copies the solved bodies, constraints and points back.
@@ -355,6 +400,7 @@ impl Batch {
             unsafe {
                 at.solver_bodies.write(i, w.bodies[k]);
                 at.bodies.get_mut(i).clone_from(&self.bodies[k]);
+                at.before_restitution.write(i, w.before_restitution[k]);
             }
         }
         for (c, &k) in w.contacts.iter().zip(manifolds) {

@@ -128,6 +128,8 @@ struct Workspace {
     before_restitution: Vec<(DVec3, DVec3)>,
     /// Energy of every body when the step began.
     start_energy: Vec<f64>,
+    /// Scratch of the restitution pass's energy rule.
+    grouping: restitution::Grouping,
     contacts: Vec<ContactConstraint>,
     points: Vec<ContactPoint>,
     rows: Vec<JointRow>,
@@ -482,12 +484,15 @@ impl SoftStep {
             let bodies = (&mut *scene.bodies, &*scene.start);
             solver.solve_substeps(ctx, bodies, scene.grab, substeps, kicks);
         }
+        let before = &mut w.before_restitution;
+        before.resize(w.bodies.len(), (DVec3::ZERO, DVec3::ZERO));
         let arrays = island_batch::Arrays {
             bodies: &mut *scene.bodies,
             start: &*scene.start,
             solver_bodies: &mut w.bodies,
             contacts: &mut w.contacts,
             points: &mut w.points,
+            before_restitution: before,
         };
         self.small_islands.solve(ctx, arrays, substeps, kicks);
     }
@@ -698,7 +703,8 @@ impl SoftStep {
         );
     }
 
-    /// Restitution with its energy rule, velocities back into the bodies, impulses kept.
+    /// Restitution with its energy rule (the small islands' restitution passes ran in their
+    /// batches), velocities back into the bodies, impulses kept.
     fn finish(
         &mut self,
         ctx: &StepContext,
@@ -708,15 +714,21 @@ impl SoftStep {
         let w = &mut self.work;
         w.before_restitution
             .resize(w.bodies.len(), (DVec3::ZERO, DVec3::ZERO));
-        for &i in &w.solved {
+        // The energy rule reads the moving bodies' alone: the batches wrote theirs.
+        for &i in &w.solving {
             w.before_restitution[i] = (w.bodies[i].linear_velocity, w.bodies[i].angular_velocity);
         }
-        let bouncing = restitution::apply(
-            &w.colours,
+        let mut bouncing = restitution::apply(
+            (&w.colours, w.selected.as_deref()),
             (&mut w.contacts, &mut w.points),
             &mut w.bodies,
             (ctx.settings.restitution, ctx.settings.restitution_threshold),
         );
+        let batched = self.small_islands.bouncing();
+        if !batched.is_empty() {
+            bouncing.extend_from_slice(batched);
+            bouncing.sort_unstable();
+        }
         let rule = restitution::EnergyRule {
             restitution: ctx.settings.restitution,
             friction: ctx.settings.friction,
@@ -736,6 +748,7 @@ impl SoftStep {
             &mut w.bodies,
             &w.start_energy,
             &rule,
+            &mut w.grouping,
         );
         for_each_indexed2(&w.moving, bodies, &mut w.bodies, |_, body, sb| {
             body.linear_velocity = sb.linear_velocity;
