@@ -550,14 +550,11 @@ impl SoftStep {
             self.radii = shapes.iter().map(|s| s.bounding_radius()).collect();
         }
         let (dt, gravity) = (ctx.settings.time_step, ctx.settings.gravity);
-        let margins = &mut self.work.margins;
+        let (margins, radii) = (&mut self.work.margins, &self.radii);
         margins.clear();
-        margins.extend(
-            bodies
-                .iter()
-                .map(|b| motion_bound(b, self.radii[b.shape], gravity, dt) + SPECULATIVE_DISTANCE),
-        );
-        let radii = &self.radii;
+        parallel::extend_map(margins, bodies.par_iter(), 1024, |b| {
+            motion_bound(b, radii[b.shape], gravity, dt) + SPECULATIVE_DISTANCE
+        });
         let pairs = candidate_pairs(broad, (bodies, shapes), (radii, margins, dt), stats);
         let mut seeds = sleep::disturbed(bodies, scene.constraints, &pairs);
         seeds.append(&mut self.touched_sleepers);
@@ -588,13 +585,14 @@ impl SoftStep {
         let margins = &self.work.margins;
         let manifolds = &mut self.work.manifolds;
         manifolds.clear();
-        // A body's box grown by its margin reaches the ground plane.
-        let grown = broad.speculative_boxes();
+        // A body's box grown by its margin reaches the ground plane. (Told from the broad
+        // phase's arrays, so a body the ground is far from is not read.)
+        let (grown, awake) = (broad.speculative_boxes(), broad.awake());
         for range in buffer::blocks(bodies.len(), MANIFOLD_BLOCK) {
             buffer::reserve_exact(manifolds, range.len());
             parallel::extend_filter_map(manifolds, range.into_par_iter(), 256, |j| {
+                let reaches = awake[j] && grown[j].min.y <= 0.0;
                 let b = &bodies[j];
-                let reaches = b.is_awake() && grown[j].min.y <= 0.0;
                 reaches.then(|| ground_manifold(j, b, &shapes[b.shape], (margins[j], dt)))?
             });
         }
