@@ -22,12 +22,6 @@ impl DisjointSets {
         self.parent.extend(0..n);
     }
 
-    /// A new set of one index, the next; returns it.
-    pub fn push(&mut self) -> usize {
-        self.parent.push(self.parent.len());
-        self.parent.len() - 1
-    }
-
     /// The root (smallest index) of `x`'s set.
     pub fn root(&mut self, mut x: usize) -> usize {
         let parent = &mut self.parent;

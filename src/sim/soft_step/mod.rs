@@ -128,8 +128,6 @@ struct Workspace {
     before_restitution: Vec<(DVec3, DVec3)>,
     /// Energy of every body when the step began.
     start_energy: Vec<f64>,
-    /// Scratch of the restitution pass's energy rule.
-    grouping: restitution::Grouping,
     contacts: Vec<ContactConstraint>,
     points: Vec<ContactPoint>,
     rows: Vec<JointRow>,
@@ -752,7 +750,6 @@ impl SoftStep {
             &mut w.bodies,
             &w.start_energy,
             &rule,
-            &mut w.grouping,
         );
         for_each_indexed2(&w.moving, bodies, &mut w.bodies, |_, body, sb| {
             body.linear_velocity = sb.linear_velocity;

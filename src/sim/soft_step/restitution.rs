@@ -141,9 +141,8 @@ pub fn settle_energy(
     bodies: &mut [SolverBody],
     start: &[f64],
     rule: &EnergyRule,
-    scratch: &mut Grouping,
 ) {
-    let groups = bouncing_groups(contacts, poses, scratch);
+    let groups = bouncing_groups(contacts, poses);
     if groups.is_empty() {
         return;
     }
@@ -172,7 +171,7 @@ pub fn settle_energy(
         rule.gravity,
         bodies,
     );
-    let joined = joined_groups(contacts, poses, &groups, scratch);
+    let joined = joined_groups(contacts, poses, &groups);
     // Against what the group had before the restitution pass too, where that was more: the
     // cap is on what the bounces add, and the soft contacts may have pushed bodies apart.
     let cap = |_: &[usize], terms: EnergyTerms| {
@@ -308,11 +307,7 @@ fn is_member(i: usize, poses: &[RigidBody]) -> bool {
 }
 
 /// Bodies joined by manifolds with a bounce this step, as lists (union-find).
-fn bouncing_groups(
-    contacts: &Contacts,
-    poses: &[RigidBody],
-    scratch: &mut Grouping,
-) -> Vec<Vec<usize>> {
+fn bouncing_groups(contacts: &Contacts, poses: &[RigidBody]) -> Vec<Vec<usize>> {
     let Contacts {
         manifolds,
         constraints,
@@ -328,7 +323,7 @@ fn bouncing_groups(
                 .any(|p| p.restitution_impulse != 0.0)
         })
         .collect();
-    // Most steps nothing bounces: no O(n) scratch then.
+    // Most steps nothing bounces.
     if bounced.is_empty() {
         return Vec::new();
     }
@@ -338,7 +333,7 @@ fn bouncing_groups(
         .flat_map(|(i, j)| [i, j])
         .filter(|&k| is_member(k, poses))
         .collect();
-    groups_of(poses, links, &seeds, scratch)
+    groups_of(poses, links, &seeds)
 }
 
 /// The [`bouncing_groups`] joined with the bodies their bodies touched through manifolds that
@@ -348,7 +343,6 @@ fn joined_groups(
     contacts: &Contacts,
     poses: &[RigidBody],
     groups: &[Vec<usize>],
-    scratch: &mut Grouping,
 ) -> Vec<Vec<usize>> {
     let Contacts {
         manifolds,
@@ -358,12 +352,10 @@ fn joined_groups(
         ..
     } = *contacts;
     let seeds: Vec<usize> = groups.iter().flatten().copied().collect();
-    let is_seed = &mut scratch.is_seed;
-    is_seed.resize(poses.len(), false);
+    let mut is_seed = vec![false; poses.len()];
     for &i in &seeds {
         is_seed[i] = true;
     }
-    let is_seed = &*is_seed;
     let touches_seed = |(i, j): (usize, usize)| (i != GROUND && is_seed[i]) || is_seed[j];
     // The seed test first: most manifolds of a landing touch no bouncing body.
     let pushed = (constraints.iter().zip(manifolds))
@@ -377,78 +369,42 @@ fn joined_groups(
     let held = (joints.iter())
         .map(|c| (c.body1, c.body2))
         .filter(|&pair| touches_seed(pair));
-    let links: Vec<(usize, usize)> = pushed.chain(held).collect();
-    for &i in &seeds {
-        scratch.is_seed[i] = false;
-    }
-    groups_of(poses, links.into_iter(), &seeds, scratch)
+    groups_of(poses, pushed.chain(held), &seeds)
 }
 
-/// Per-body scratch of the groupings, kept from step to step. Every entry a grouping sets is
-/// set back after it, so it costs what its links and seeds do, not what the bodies do: arrays
-/// of every body made for each of the two groupings (five of them, 3.6 MB at scatter-100000)
-/// took 2.2 ms of its landing steps.
-#[derive(Debug, Clone, Default)]
-pub struct Grouping {
-    /// Per body: its place among `met`, or [`NOT_MET`].
-    place: Vec<u32>,
-    /// The bodies a grouping met, by place.
-    met: Vec<usize>,
-    /// Over places.
-    sets: DisjointSets,
-    /// Per body: whether [`joined_groups`] grows a group from it.
-    is_seed: Vec<bool>,
-}
-
-/// A body no grouping has met.
-const NOT_MET: u32 = u32::MAX;
-
-impl Grouping {
-    /// Body `i`'s place, given it at its first meeting.
-    fn meet(&mut self, i: usize) -> usize {
-        if self.place[i] == NOT_MET {
-            self.place[i] = self.met.len() as u32;
-            self.met.push(i);
-            self.sets.push();
-        }
-        self.place[i] as usize
-    }
-}
-
-/// The sets of member bodies joined by `links` that hold a body marked in `seeds` (members
-/// only), each listed in ascending order, in the order of their first members. Only the seeds
-/// and the linked bodies can be in one, so only those are looked at: with a scan of every
-/// body's state the two groupings took 3.1 ms a step of scatter-100000's landing, now 2.0.
+/// The sets of member bodies joined by `links` that hold one of the `seeds` (members only),
+/// each listed in ascending order, in the order of their first members. Only the seeds and the
+/// linked bodies can be in one, so only those are looked at, by their places among them
+/// (sorted): with a scan of every body's state the two groupings took 3.1 ms a step of
+/// scatter-100000's landing, and arrays of every body (five for each grouping, 3.6 MB there)
+/// another millisecond or more.
 fn groups_of(
     poses: &[RigidBody],
     links: impl Iterator<Item = (usize, usize)>,
     seeds: &[usize],
-    g: &mut Grouping,
 ) -> Vec<Vec<usize>> {
-    g.place.resize(poses.len(), NOT_MET);
-    g.met.clear();
-    g.sets.reset(0);
-    for (i, j) in links {
-        if is_member(i, poses) && is_member(j, poses) {
-            let (a, b) = (g.meet(i), g.meet(j));
-            g.sets.join(a, b);
-        }
-    }
-    for &i in seeds {
-        g.meet(i);
-    }
-    let mut seeded = vec![false; g.met.len()];
-    for &i in seeds {
-        let place = g.place[i] as usize;
-        seeded[g.sets.root(place)] = true;
-    }
+    let joins: Vec<(usize, usize)> = links
+        .filter(|&(i, j)| is_member(i, poses) && is_member(j, poses))
+        .collect();
     // The bodies met, ascending: each group's members in order, the groups by their first.
-    let mut order: Vec<u32> = (0..g.met.len() as u32).collect();
-    order.sort_unstable_by_key(|&p| g.met[p as usize]);
+    let mut met: Vec<usize> = (joins.iter().flat_map(|&(i, j)| [i, j]))
+        .chain(seeds.iter().copied())
+        .collect();
+    met.sort_unstable();
+    met.dedup();
+    let place = |i: usize| met.partition_point(|&m| m < i);
+    let mut sets = DisjointSets::new(met.len());
+    for (i, j) in joins {
+        sets.join(place(i), place(j));
+    }
+    let mut seeded = vec![false; met.len()];
+    for &i in seeds {
+        seeded[sets.root(place(i))] = true;
+    }
     let mut groups: Vec<Vec<usize>> = Vec::new();
-    let mut slot = vec![usize::MAX; g.met.len()];
-    for p in order {
-        let root = g.sets.root(p as usize);
+    let mut slot = vec![usize::MAX; met.len()];
+    for (p, &i) in met.iter().enumerate() {
+        let root = sets.root(p);
         if !seeded[root] {
             continue;
         }
@@ -456,17 +412,14 @@ fn groups_of(
             slot[root] = groups.len();
             groups.push(Vec::new());
         }
-        groups[slot[root]].push(g.met[p as usize]);
-    }
-    for &i in &g.met {
-        g.place[i] = NOT_MET;
+        groups[slot[root]].push(i);
     }
     groups
 }
 
 #[cfg(test)]
 mod tests {
-    use super::{EnergyTerms, Grouping, MAX_SHARE, RigidBody, groups_of, share_for};
+    use super::{EnergyTerms, MAX_SHARE, RigidBody, groups_of, share_for};
     use crate::sim::rng::Rng;
     use glam::{DMat3, DQuat, DVec3};
 
@@ -475,7 +428,6 @@ mod tests {
     #[test]
     fn groups_are_the_components_of_awake_bodies_that_hold_a_seed() {
         let mut rng = Rng::new(11);
-        let mut scratch = Grouping::default();
         for round in 0..50 {
             let n = 60;
             let body = |_| {
@@ -518,11 +470,8 @@ mod tests {
                 }
             }
             let listed: Vec<usize> = (0..n).filter(|&i| seeds[i]).collect();
-            // Twice on one scratch: the first grouping leaves nothing behind.
-            for _ in 0..2 {
-                let found = groups_of(&poses, links.iter().copied(), &listed, &mut scratch);
-                assert_eq!(found, expected, "round {round}");
-            }
+            let found = groups_of(&poses, links.iter().copied(), &listed);
+            assert_eq!(found, expected, "round {round}");
         }
     }
 
