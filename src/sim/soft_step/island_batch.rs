@@ -4,9 +4,10 @@
 //! (scatter-100000: some 60 MB), every pass waits on memory. An island of a few bodies shares
 //! nothing with the others, so its whole substep program can run while its rows are in cache:
 //! the step's small islands are copied, a batch of them at a time, into a workspace of their
-//! own, solved there by the same program ([`Solver`]) and the same restitution pass
-//! ([`restitution::apply`]) and copied back, as the island solvers of PhysX and Bullet solve
-//! one island at a time (Box2D v3 colours everything).
+//! own, solved there by the same program ([`Solver`]), restitution pass
+//! ([`restitution::apply`]) and energy rule ([`restitution::settle_energy`]: a bounce's groups
+//! lie within its island) and copied back, as the island solvers of PhysX and Bullet solve one
+//! island at a time (Box2D v3 colours everything).
 //!
 //! The result is the colour-by-colour passes' bits: a batch keeps its constraints in the
 //! colouring's order (ascending index), which within an island is the order the colours'
@@ -61,19 +62,17 @@ pub struct SmallIslands {
     /// Workspaces for runs of batches, kept from step to step (made anew in every step they
     /// were grown again: reallocations took 1 % of scatter-10000's step).
     workspaces: Vec<Batch>,
-    /// The batches' constraints with a bounce in the restitution pass (ascending).
-    bouncing: Vec<u32>,
 }
 
 /// The step's arrays a batch is copied from and back into.
 pub struct Arrays<'a> {
     pub bodies: &'a mut [RigidBody],
     pub start: &'a [(DVec3, DQuat)],
+    /// Each moving body's energy when the step began.
+    pub start_energy: &'a [f64],
     pub solver_bodies: &'a mut [SolverBody],
     pub contacts: &'a mut [ContactConstraint],
     pub points: &'a mut [ContactPoint],
-    /// Each moving body's velocities before the restitution pass (written back).
-    pub before_restitution: &'a mut [(DVec3, DVec3)],
 }
 
 /// [`Arrays`] shared by the threads solving batches: each batch touches only its own moving
@@ -81,10 +80,10 @@ pub struct Arrays<'a> {
 struct SharedArrays<'a> {
     bodies: Shared<'a, RigidBody>,
     start: &'a [(DVec3, DQuat)],
+    start_energy: &'a [f64],
     solver_bodies: Shared<'a, SolverBody>,
     contacts: Shared<'a, ContactConstraint>,
     points: Shared<'a, ContactPoint>,
-    before_restitution: Shared<'a, (DVec3, DVec3)>,
 }
 
 impl SmallIslands {
@@ -100,7 +99,6 @@ impl SmallIslands {
     ) {
         self.manifold_ends.clear();
         self.body_ends.clear();
-        self.bouncing.clear();
         solving.clear();
         *selected = None;
         if batching && !moving.is_empty() {
@@ -218,14 +216,8 @@ impl SmallIslands {
         )
     }
 
-    /// The batches' constraints with a bounce in the last [`SmallIslands::solve`] (ascending;
-    /// none before one in the step).
-    pub fn bouncing(&self) -> &[u32] {
-        &self.bouncing
-    }
-
     /// Solves every batch: copied into a workspace of its own, through the substeps and the
-    /// restitution pass, and back; on all threads (each batch on one).
+    /// restitution pass with its energy rule, and back; on all threads (each batch on one).
     pub fn solve(&mut self, ctx: &StepContext, arrays: Arrays, substeps: &Substeps, kicks: &Kicks) {
         let batches = self.manifold_ends.len();
         if batches == 0 {
@@ -234,10 +226,10 @@ impl SmallIslands {
         let at = SharedArrays {
             bodies: Shared::new(arrays.bodies),
             start: arrays.start,
+            start_energy: arrays.start_energy,
             solver_bodies: Shared::new(arrays.solver_bodies),
             contacts: Shared::new(arrays.contacts),
             points: Shared::new(arrays.points),
-            before_restitution: Shared::new(arrays.before_restitution),
         };
         // Runs of batches, a few per thread for balance (which runs there are changes no bit).
         let runs = batches.min(RUNS_PER_THREAD * rayon::current_num_threads());
@@ -248,23 +240,15 @@ impl SmallIslands {
             .par_iter_mut()
             .enumerate()
             .for_each(|(r, batch)| {
-                batch.bouncing.clear();
                 for k in batches * r / runs..batches * (r + 1) / runs {
                     let island = this.batch(k);
                     // SAFETY: batches share no moving body, constraint or point (see the module's
                     // documentation), and the static bodies are only read.
                     unsafe { batch.gather(island, &at) };
-                    batch.solve(ctx, island.0, substeps, kicks);
+                    batch.solve(ctx, substeps, kicks);
                     unsafe { batch.scatter(island, &at) };
                 }
             });
-        self.bouncing.clear();
-        for batch in &workspaces {
-            self.bouncing.extend_from_slice(&batch.bouncing);
-        }
-        // Batches are made in the order of their islands' first manifolds, so their bouncing
-        // constraints interleave.
-        self.bouncing.sort_unstable();
         self.workspaces = workspaces;
     }
 }
@@ -310,8 +294,6 @@ struct Batch {
     /// No distance constraints in a batch: empty.
     blocks: JointBlocks,
     joint_sides: HeldSides,
-    /// The step's indices of the constraints with a bounce, of every batch of the run.
-    bouncing: Vec<u32>,
 }
 
 impl Batch {
@@ -323,6 +305,7 @@ impl Batch {
     unsafe fn gather(&mut self, (manifolds, moving): (&[u32], &[usize]), at: &SharedArrays) {
         let w = &mut self.work;
         w.bodies.clear();
+        w.start_energy.clear();
         self.bodies.clear();
         self.start.clear();
         self.statics.clear();
@@ -333,6 +316,7 @@ impl Batch {
                 self.bodies.push(at.bodies.get(i).clone());
             }
             self.start.push(at.start[i]);
+            w.start_energy.push(at.start_energy[i]);
         }
         w.contacts.clear();
         w.points.clear();
@@ -359,11 +343,12 @@ impl Batch {
         w.turns_inertia = false;
     }
 
-    /// The substeps, then the restitution pass, of the batch of `manifolds` gathered: the
-    /// colour-by-colour pass's bits (see the module's documentation), while the rows are in
-    /// cache (the colours' pass over scatter-100000's bouncing constraints streamed them in
-    /// again eight times).
-    fn solve(&mut self, ctx: &StepContext, manifolds: &[u32], substeps: &Substeps, kicks: &Kicks) {
+    /// The substeps, then the restitution pass and its energy rule, of the batch gathered: the
+    /// colour-by-colour passes' bits (see the module's documentation; an island's bouncing
+    /// groups are within it), while its rows and bodies are in cache (the colours' pass over
+    /// scatter-100000's bouncing constraints streamed them in again eight times, and the
+    /// energy rule read bodies all over the step's arrays).
+    fn solve(&mut self, ctx: &StepContext, substeps: &Substeps, kicks: &Kicks) {
         let mut solver = Solver {
             work: &mut self.work,
             blocks: &mut self.blocks,
@@ -386,7 +371,22 @@ impl Batch {
             &mut w.bodies,
             (settings.restitution, settings.restitution_threshold),
         );
-        (self.bouncing).extend(bouncing.into_iter().map(|k| manifolds[k as usize]));
+        let contacts = restitution::Contacts {
+            constraints: &w.contacts,
+            selected: None,
+            points: &w.points,
+            bouncing: &bouncing,
+            joints: &[],
+        };
+        let (rule, before) = (restitution::EnergyRule::of(settings), &w.before_restitution);
+        restitution::settle_energy(
+            &contacts,
+            &self.bodies,
+            before,
+            &mut w.bodies,
+            &w.start_energy,
+            &rule,
+        );
     }
 
     /// Copies the solved bodies, constraints and points back.
@@ -400,7 +400,6 @@ impl Batch {
             unsafe {
                 at.solver_bodies.write(i, w.bodies[k]);
                 at.bodies.get_mut(i).clone_from(&self.bodies[k]);
-                at.before_restitution.write(i, w.before_restitution[k]);
             }
         }
         for (c, &k) in w.contacts.iter().zip(manifolds) {

@@ -484,15 +484,13 @@ impl SoftStep {
             let bodies = (&mut *scene.bodies, &*scene.start);
             solver.solve_substeps(ctx, bodies, scene.grab, substeps, kicks);
         }
-        let before = &mut w.before_restitution;
-        before.resize(w.bodies.len(), (DVec3::ZERO, DVec3::ZERO));
         let arrays = island_batch::Arrays {
             bodies: &mut *scene.bodies,
             start: &*scene.start,
+            start_energy: &w.start_energy,
             solver_bodies: &mut w.bodies,
             contacts: &mut w.contacts,
             points: &mut w.points,
-            before_restitution: before,
         };
         self.small_islands.solve(ctx, arrays, substeps, kicks);
     }
@@ -705,8 +703,8 @@ impl SoftStep {
         );
     }
 
-    /// Restitution with its energy rule (the small islands' restitution passes ran in their
-    /// batches), velocities back into the bodies, impulses kept.
+    /// Restitution with its energy rule (the small islands' ran in their batches), velocities
+    /// back into the bodies, impulses kept.
     fn finish(
         &mut self,
         ctx: &StepContext,
@@ -720,25 +718,16 @@ impl SoftStep {
         for &i in &w.solving {
             w.before_restitution[i] = (w.bodies[i].linear_velocity, w.bodies[i].angular_velocity);
         }
-        let mut bouncing = restitution::apply(
+        let bouncing = restitution::apply(
             (&w.colours, w.selected.as_deref()),
             (&mut w.contacts, &mut w.points),
             &mut w.bodies,
             (ctx.settings.restitution, ctx.settings.restitution_threshold),
         );
-        let batched = self.small_islands.bouncing();
-        if !batched.is_empty() {
-            bouncing.extend_from_slice(batched);
-            bouncing.sort_unstable();
-        }
-        let rule = restitution::EnergyRule {
-            restitution: ctx.settings.restitution,
-            friction: ctx.settings.friction,
-            gravity: ctx.settings.gravity,
-        };
+        let rule = restitution::EnergyRule::of(&ctx.settings);
         let contacts = restitution::Contacts {
-            manifolds: &w.manifolds,
             constraints: &w.contacts,
+            selected: w.selected.as_deref(),
             points: &w.points,
             bouncing: &bouncing,
             joints: constraints,

@@ -16,7 +16,6 @@ use super::contact_solver::{
     ContactConstraint, ContactPoint, bounce_velocity, for_each_contact_in,
 };
 use super::disjoint_sets::DisjointSets;
-use super::manifold::{GROUND, Manifold};
 use super::solver_body::SolverBody;
 use crate::sim::body::RigidBody;
 use crate::sim::constraint::DistanceConstraint;
@@ -87,11 +86,14 @@ pub fn energy(body: &RigidBody, v: DVec3, w: DVec3, gravity: DVec3) -> f64 {
         - body.mass * gravity.dot(body.position)
 }
 
-/// This step's manifolds with their constraints and points.
+/// This step's contact constraints and points (the step's, or a batch's of small islands in
+/// its own indices: see [`is_member`]).
 #[derive(Clone, Copy)]
 pub struct Contacts<'a> {
-    pub manifolds: &'a [Manifold],
     pub constraints: &'a [ContactConstraint],
+    /// The constraints to look at (ascending), or all: the others' bodies are settled
+    /// elsewhere (in their batches).
+    pub selected: Option<&'a [u32]>,
     pub points: &'a [ContactPoint],
     /// The constraints with a bouncing point ([`apply`]): the only ones with restitution
     /// impulses.
@@ -106,6 +108,16 @@ pub struct EnergyRule {
     pub restitution: f64,
     pub friction: f64,
     pub gravity: DVec3,
+}
+
+impl EnergyRule {
+    pub fn of(settings: &crate::sim::Settings) -> Self {
+        Self {
+            restitution: settings.restitution,
+            friction: settings.friction,
+            gravity: settings.gravity,
+        }
+    }
 }
 
 /// Settles each group's restitution (velocities between `before`, each body's (linear,
@@ -301,15 +313,15 @@ fn share_for(terms: EnergyTerms, target: f64, max: f64) -> f64 {
     }
 }
 
-/// Which bodies take part: awake dynamic ones (not the ground).
+/// Which bodies take part: awake dynamic ones. A constraint's ground is the body past the last
+/// (the solver bodies' static ground), as a batch's static bodies are past its moving ones.
 fn is_member(i: usize, poses: &[RigidBody]) -> bool {
-    i != GROUND && poses[i].is_awake()
+    poses.get(i).is_some_and(RigidBody::is_awake)
 }
 
 /// Bodies joined by manifolds with a bounce this step, as lists (union-find).
 fn bouncing_groups(contacts: &Contacts, poses: &[RigidBody]) -> Vec<Vec<usize>> {
     let Contacts {
-        manifolds,
         constraints,
         points,
         bouncing,
@@ -327,8 +339,7 @@ fn bouncing_groups(contacts: &Contacts, poses: &[RigidBody]) -> Vec<Vec<usize>> 
     if bounced.is_empty() {
         return Vec::new();
     }
-    let links =
-        (bounced.iter()).map(|&k| (manifolds[k as usize].body1, manifolds[k as usize].body2));
+    let links = (bounced.iter()).map(|&k| constraints[k as usize].bodies());
     let seeds: Vec<usize> = (links.clone())
         .flat_map(|(i, j)| [i, j])
         .filter(|&k| is_member(k, poses))
@@ -345,8 +356,8 @@ fn joined_groups(
     groups: &[Vec<usize>],
 ) -> Vec<Vec<usize>> {
     let Contacts {
-        manifolds,
         constraints,
+        selected,
         points,
         joints,
         ..
@@ -356,16 +367,21 @@ fn joined_groups(
     for &i in &seeds {
         is_seed[i] = true;
     }
-    let touches_seed = |(i, j): (usize, usize)| (i != GROUND && is_seed[i]) || is_seed[j];
+    let touches_seed =
+        |(i, j): (usize, usize)| is_seed.get(i) == Some(&true) || is_seed.get(j) == Some(&true);
+    let chosen: Box<dyn Iterator<Item = &ContactConstraint>> = match selected {
+        Some(selected) => Box::new(selected.iter().map(|&k| &constraints[k as usize])),
+        None => Box::new(constraints.iter()),
+    };
     // The seed test first: most manifolds of a landing touch no bouncing body.
-    let pushed = (constraints.iter().zip(manifolds))
-        .filter(|(c, m)| {
-            touches_seed((m.body1, m.body2))
+    let pushed = chosen
+        .filter(|c| {
+            touches_seed(c.bodies())
                 && points[c.points()]
                     .iter()
                     .any(|p| p.max_normal_impulse != 0.0)
         })
-        .map(|(_, m)| (m.body1, m.body2));
+        .map(|c| c.bodies());
     let held = (joints.iter())
         .map(|c| (c.body1, c.body2))
         .filter(|&pair| touches_seed(pair));
