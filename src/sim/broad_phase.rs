@@ -128,11 +128,16 @@ impl BroadPhase {
     /// pairs from step to step, so a body whose speculative box stays inside its proxy costs it
     /// nothing, and a sleeping body, whose box is not even recomputed until its pose changes
     /// (a rewind, an edit), costs a filter test per pair. `tested` counts box tests.
+    ///
+    /// `again`: a second call in the step, after some sleeping bodies woke, with no pose or
+    /// margin changed since the first: the boxes computed then are current, and only the
+    /// woken bodies' are computed (every awake body's box again took a millisecond of the
+    /// steps of scatter-100000's landing that woke an island).
     pub fn speculative_pairs(
         &mut self,
         bodies: &[RigidBody],
         shapes: &[Shape],
-        (margins, dt): (&[f64], f64),
+        (margins, dt, again): (&[f64], f64, bool),
         keep: impl Fn(usize, usize) -> bool + Sync,
         tested: &mut usize,
     ) -> Vec<(u32, u32)> {
@@ -153,7 +158,8 @@ impl BroadPhase {
         let moved = cleared(&mut self.moved, n);
         // The bodies' states, read once here (a pass over 100,000 bodies of 248 bytes each
         // costs a millisecond where they do not fit the cache).
-        let states = (cleared(&mut self.is_awake, n), cleared(&mut self.active, n));
+        self.is_awake.resize(n, false);
+        let states = (&mut self.is_awake, cleared(&mut self.active, n));
         let boxes = (&mut self.speculative, &mut self.proxies);
         let items = (boxes, &mut self.placed, moved, states).into_par_iter();
         let items = items.zip((bodies, margins));
@@ -161,9 +167,10 @@ impl BroadPhase {
             items,
             256,
             |(((speculative, proxy), placed, moved, (awake, active)), (b, &m))| {
-                (*awake, *active) = (b.is_awake(), !b.quarantined);
+                let was_awake = std::mem::replace(awake, b.is_awake());
+                *active = !b.quarantined;
                 let pose = Some((b.position, b.orientation));
-                if *awake || *placed != pose {
+                if (*awake && !(again && was_awake)) || *placed != pose {
                     *speculative = body_aabb(b, &shapes[b.shape]).fattened(m);
                     *placed = pose;
                 }
@@ -257,7 +264,8 @@ mod tests {
 
     /// The soft step's pairs, kept in the grid from step to step, are those a test of every
     /// pair gives: bodies falling, drifting, spinning and teleported, some asleep (their boxes
-    /// kept), some quarantined, over steps where most or few proxies change.
+    /// kept), some quarantined, over steps where most or few proxies change; and again within
+    /// the step after some sleepers woke (their boxes made anew, with this step's margins).
     #[test]
     fn speculative_pairs_match_every_pair_tested_over_steps() {
         let shapes = vec![
@@ -279,8 +287,8 @@ mod tests {
         let mut broad = BroadPhase::new(&bodies, &shapes);
         let keep = |i: usize, j: usize| !(i + j).is_multiple_of(7);
         let dt = 0.02;
+        let mut kept = vec![None; n];
         for step in 0..40 {
-            let margins: Vec<f64> = (0..n).map(|k| 0.1 + 0.05 * (k % 5) as f64).collect();
             for (k, b) in bodies.iter_mut().enumerate() {
                 b.asleep = (k + step / 10) % 4 == 0;
                 b.quarantined = k % 97 == step % 97;
@@ -292,32 +300,70 @@ mod tests {
                         (DQuat::from_scaled_axis(DVec3::splat(0.05)) * b.orientation).normalize();
                 }
             }
+            // A sleeper's margin is a resting body's; the others' change from step to step.
+            let margin = |(k, b): (usize, &RigidBody)| match b.asleep {
+                true => 0.1,
+                false => 0.1 + 0.05 * ((k + step) % 5) as f64,
+            };
+            let margins: Vec<f64> = bodies.iter().enumerate().map(margin).collect();
             let mut tested = 0;
-            let pairs =
-                broad.speculative_pairs(&bodies, &shapes, (&margins, dt), keep, &mut tested);
-            let grown: Vec<Aabb> = (0..n)
-                .map(|k| body_aabb(&bodies[k], &shapes[bodies[k].shape]).fattened(margins[k]))
-                .collect();
-            let mut expected = Vec::new();
-            for i in 0..n {
-                for j in i + 1..n {
-                    let (a, b) = (&bodies[i], &bodies[j]);
-                    if !a.quarantined
-                        && !b.quarantined
-                        && (a.is_awake() || b.is_awake())
-                        && grown[i].overlaps(&grown[j])
-                        && keep(i, j)
-                    {
-                        expected.push((i as u32, j as u32));
-                    }
-                }
-            }
+            let first = (&margins[..], dt, false);
+            let pairs = broad.speculative_pairs(&bodies, &shapes, first, keep, &mut tested);
+            let expected = every_pair_tested(&bodies, &shapes, (&margins, &mut kept), keep);
             assert!(
                 step < 5 || expected.len() > 20,
                 "step {step}: {}",
                 expected.len()
             );
             assert_eq!(pairs, expected, "step {step}");
+            // Some sleepers woken, asked again within the step.
+            for b in bodies.iter_mut().step_by(3).filter(|b| b.asleep) {
+                b.asleep = false;
+            }
+            let again = (&margins[..], dt, true);
+            let pairs = broad.speculative_pairs(&bodies, &shapes, again, keep, &mut tested);
+            let expected = every_pair_tested(&bodies, &shapes, (&margins, &mut kept), keep);
+            assert_eq!(pairs, expected, "step {step}, again");
         }
+    }
+
+    /// Body pose and the speculative box made there.
+    type Placed = Option<((DVec3, DQuat), Aabb)>;
+
+    /// Every pair tested against every other, by each body's speculative box: made at its pose
+    /// with its margin where it is awake or has moved since its box was made (`kept`), else
+    /// the box made then.
+    fn every_pair_tested(
+        bodies: &[RigidBody],
+        shapes: &[Shape],
+        (margins, kept): (&[f64], &mut [Placed]),
+        keep: impl Fn(usize, usize) -> bool,
+    ) -> Vec<(u32, u32)> {
+        let n = bodies.len();
+        let mut grown = Vec::new();
+        for (k, b) in bodies.iter().enumerate() {
+            let pose = (b.position, b.orientation);
+            let made = match kept[k] {
+                Some((at, made)) if !b.is_awake() && at == pose => made,
+                _ => body_aabb(b, &shapes[b.shape]).fattened(margins[k]),
+            };
+            kept[k] = Some((pose, made));
+            grown.push(made);
+        }
+        let mut expected = Vec::new();
+        for i in 0..n {
+            for j in i + 1..n {
+                let (a, b) = (&bodies[i], &bodies[j]);
+                if !a.quarantined
+                    && !b.quarantined
+                    && (a.is_awake() || b.is_awake())
+                    && grown[i].overlaps(&grown[j])
+                    && keep(i, j)
+                {
+                    expected.push((i as u32, j as u32));
+                }
+            }
+        }
+        expected
     }
 }

@@ -553,7 +553,7 @@ impl SoftStep {
         parallel::extend_map(margins, bodies.par_iter(), 1024, |b| {
             motion_bound(b, radii[b.shape], gravity, dt) + SPECULATIVE_DISTANCE
         });
-        let pairs = candidate_pairs(broad, (bodies, shapes), (radii, margins, dt), stats);
+        let pairs = candidate_pairs(broad, (bodies, shapes), (radii, margins, dt, false), stats);
         let mut seeds = sleep::disturbed(bodies, scene.constraints, &pairs);
         seeds.append(&mut self.touched_sleepers);
         let touching = self.contacts.pairs();
@@ -565,7 +565,7 @@ impl SoftStep {
         // in the next step if they moved): waking them in a loop until nothing more woke ran
         // the broad phase once per ring of a resting carpet, five times a step at
         // scatter-100000, and kept all of it awake.
-        candidate_pairs(broad, (bodies, shapes), (radii, margins, dt), stats)
+        candidate_pairs(broad, (bodies, shapes), (radii, margins, dt, true), stats)
     }
 
     /// Manifolds of the candidate pairs and of the awake bodies near the ground, ground first,
@@ -956,11 +956,12 @@ fn at_rest(scene: &Scene) -> bool {
 
 /// Candidate pairs: bodies whose boxes, grown by their `margins` (how far they can travel this
 /// step), overlap and whose bounding spheres so grown reach each other; pairs of sleeping
-/// bodies left out.
+/// bodies left out. `again`: the step's second call, after waking (see
+/// [`BroadPhase::speculative_pairs`]).
 fn candidate_pairs(
     broad: &mut BroadPhase,
     (bodies, shapes): (&[RigidBody], &[Shape]),
-    (radii, margins, dt): (&[f64], &[f64], f64),
+    (radii, margins, dt, again): (&[f64], &[f64], f64, bool),
     stats: &mut StepStats,
 ) -> Vec<(u32, u32)> {
     let keep = |i: usize, j: usize| {
@@ -972,7 +973,8 @@ fn candidate_pairs(
                 (b, radii[b.shape] + margins[j]),
             )
     };
-    broad.speculative_pairs(bodies, shapes, (margins, dt), keep, &mut stats.pairs_tested)
+    let (speculative, tested) = ((margins, dt, again), &mut stats.pairs_tested);
+    broad.speculative_pairs(bodies, shapes, speculative, keep, tested)
 }
 
 /// Whether the bounding spheres of two bodies, each grown by its reach, overlap. The boxes of
