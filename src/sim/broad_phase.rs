@@ -131,8 +131,8 @@ impl BroadPhase {
     ///
     /// `again`: a second call in the step, after some sleeping bodies woke, with no pose or
     /// margin changed since the first: the boxes computed then are current, and only the
-    /// woken bodies' are computed (every awake body's box again took a millisecond of the
-    /// steps of scatter-100000's landing that woke an island).
+    /// woken bodies' are computed (making every awake body's box again cost scatter-100000's
+    /// landing about half a millisecond a step).
     pub fn speculative_pairs(
         &mut self,
         bodies: &[RigidBody],
