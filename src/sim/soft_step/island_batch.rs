@@ -4,10 +4,9 @@
 //! (scatter-100000: some 60 MB), every pass waits on memory. An island of a few bodies shares
 //! nothing with the others, so its whole substep program can run while its rows are in cache:
 //! the step's small islands are copied, a batch of them at a time, into a workspace of their
-//! own, solved there by the same program ([`Solver`]), restitution pass
-//! ([`restitution::apply`]) and energy rule ([`restitution::settle_energy`]: a bounce's groups
-//! lie within its island) and copied back, as the island solvers of PhysX and Bullet solve one
-//! island at a time (Box2D v3 colours everything).
+//! own, solved there by the same program ([`Solver`]), restitution pass and energy rule
+//! ([`Workspace::bounce`]: a bounce's groups lie within its island) and copied back, as the
+//! island solvers of PhysX and Bullet solve one island at a time (Box2D v3 colours everything).
 //!
 //! The result is the colour-by-colour passes' bits: a batch keeps its constraints in the
 //! colouring's order (ascending index), which within an island is the order the colours'
@@ -19,7 +18,6 @@ use super::contact_solver::{ContactConstraint, ContactPoint};
 use super::disjoint_sets::DisjointSets;
 use super::joint_block::{HeldSides, JointBlocks};
 use super::manifold::{GROUND, Manifold};
-use super::restitution;
 use super::solver_body::SolverBody;
 use super::{Kicks, Solver, Substeps, Workspace};
 use crate::sim::body::RigidBody;
@@ -356,37 +354,9 @@ impl Batch {
         };
         let bodies = (&mut self.bodies[..], &self.start[..]);
         solver.solve_substeps(ctx, bodies, None, substeps, kicks);
-        let w = &mut self.work;
-        w.before_restitution.clear();
-        let moving = &w.bodies[..self.bodies.len()];
-        (w.before_restitution).extend(
-            moving
-                .iter()
-                .map(|b| (b.linear_velocity, b.angular_velocity)),
-        );
-        let settings = &ctx.settings;
-        let bouncing = restitution::apply(
-            (&w.colours, None),
-            (&mut w.contacts, &mut w.points),
-            &mut w.bodies,
-            (settings.restitution, settings.restitution_threshold),
-        );
-        let contacts = restitution::Contacts {
-            constraints: &w.contacts,
-            selected: None,
-            points: &w.points,
-            bouncing: &bouncing,
-            joints: &[],
-        };
-        let (rule, before) = (restitution::EnergyRule::of(settings), &w.before_restitution);
-        restitution::settle_energy(
-            &contacts,
-            &self.bodies,
-            before,
-            &mut w.bodies,
-            &w.start_energy,
-            &rule,
-        );
+        // (`solving` is the batch's moving bodies, `selected` all its constraints: see
+        // `gather`.)
+        self.work.bounce(&self.bodies, &[], &ctx.settings);
     }
 
     /// Copies the solved bodies, constraints and points back.

@@ -177,6 +177,47 @@ impl Workspace {
             r.impulse += held;
         }
     }
+
+    /// The restitution pass over the program's constraints (`selected`), then its energy rule
+    /// over the bodies the program moves (`solving`, whose velocities before the pass it reads;
+    /// `poses` their poses, `joints` the distance constraints). The step's program and each
+    /// batch of small islands run it on their own constraints.
+    fn bounce(
+        &mut self,
+        poses: &[RigidBody],
+        joints: &[DistanceConstraint],
+        settings: &crate::sim::Settings,
+    ) {
+        let before = &mut self.before_restitution;
+        before.resize(self.bodies.len(), (DVec3::ZERO, DVec3::ZERO));
+        for &i in &self.solving {
+            before[i] = (
+                self.bodies[i].linear_velocity,
+                self.bodies[i].angular_velocity,
+            );
+        }
+        let bouncing = restitution::apply(
+            (&self.colours, self.selected.as_deref()),
+            (&mut self.contacts, &mut self.points),
+            &mut self.bodies,
+            (settings.restitution, settings.restitution_threshold),
+        );
+        let contacts = restitution::Contacts {
+            constraints: &self.contacts,
+            selected: self.selected.as_deref(),
+            points: &self.points,
+            bouncing: &bouncing,
+            joints,
+        };
+        restitution::settle_energy(
+            &contacts,
+            poses,
+            &self.before_restitution,
+            &mut self.bodies,
+            &self.start_energy,
+            &restitution::EnergyRule::of(settings),
+        );
+    }
 }
 
 /// The bodies, shapes and constraints the solver works on.
@@ -712,34 +753,7 @@ impl SoftStep {
         stats: &mut StepStats,
     ) {
         let w = &mut self.work;
-        w.before_restitution
-            .resize(w.bodies.len(), (DVec3::ZERO, DVec3::ZERO));
-        // The energy rule reads the moving bodies' alone: the batches wrote theirs.
-        for &i in &w.solving {
-            w.before_restitution[i] = (w.bodies[i].linear_velocity, w.bodies[i].angular_velocity);
-        }
-        let bouncing = restitution::apply(
-            (&w.colours, w.selected.as_deref()),
-            (&mut w.contacts, &mut w.points),
-            &mut w.bodies,
-            (ctx.settings.restitution, ctx.settings.restitution_threshold),
-        );
-        let rule = restitution::EnergyRule::of(&ctx.settings);
-        let contacts = restitution::Contacts {
-            constraints: &w.contacts,
-            selected: w.selected.as_deref(),
-            points: &w.points,
-            bouncing: &bouncing,
-            joints: constraints,
-        };
-        restitution::settle_energy(
-            &contacts,
-            bodies,
-            &w.before_restitution,
-            &mut w.bodies,
-            &w.start_energy,
-            &rule,
-        );
+        w.bounce(bodies, constraints, &ctx.settings);
         for_each_indexed2(&w.moving, bodies, &mut w.bodies, |_, body, sb| {
             body.linear_velocity = sb.linear_velocity;
             body.angular_velocity = sb.angular_velocity;
