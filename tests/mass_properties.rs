@@ -162,9 +162,12 @@ fn shipped_meshes_match_surface_integral() {
 }
 
 /// Each tetrahedron of `mesh` with two corners swapped where `flip(k)`: the same solid, wound
-/// the other way (as tet meshers that use the opposite convention write it).
+/// the other way (as tet meshers that use the opposite convention write it), read as a tet
+/// mesh is (absolute volumes; an `.off` surface's fan counts signed ones, and its convex
+/// surfaces give the same either way).
 fn flipped(mesh: &tumble::io::TetMesh, flip: impl Fn(usize) -> bool) -> tumble::io::TetMesh {
     let mut m = mesh.clone();
+    m.volumes = tumble::io::TetVolumes::Absolute;
     for (k, t) in m.tetrahedra.iter_mut().enumerate() {
         if flip(k) {
             t.swap(1, 2);
@@ -265,4 +268,142 @@ fn inertia_and_its_inverse_are_symmetric_to_the_bit() {
             );
         }
     }
+}
+
+/// The closed surface of a union of unit cubes (`cells`, integer corners) as OFF text: each
+/// cube face not shared with another cube, wound outward.
+fn voxel_surface_off(cells: &[[i32; 3]]) -> String {
+    let filled = |c: [i32; 3]| cells.contains(&c);
+    let (mut vertices, mut faces): (Vec<[i32; 3]>, Vec<[usize; 4]>) = (Vec::new(), Vec::new());
+    let mut index = |v: [i32; 3]| match vertices.iter().position(|&w| w == v) {
+        Some(k) => k,
+        None => {
+            vertices.push(v);
+            vertices.len() - 1
+        }
+    };
+    for &c in cells {
+        for axis in 0..3 {
+            for side in [0, 1] {
+                let mut neighbour = c;
+                neighbour[axis] += 2 * side - 1;
+                if filled(neighbour) {
+                    continue;
+                }
+                // The face's corners in the plane of the other two axes, counterclockwise seen
+                // from outside (from +axis for side 1, from -axis for side 0).
+                let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+                let mut square = [(0, 0), (1, 0), (1, 1), (0, 1)];
+                if side == 0 {
+                    square.reverse();
+                }
+                faces.push(square.map(|(a, b)| {
+                    let mut p = c;
+                    p[axis] += side;
+                    p[u] += a;
+                    p[v] += b;
+                    index(p)
+                }));
+            }
+        }
+    }
+    let mut text = format!("OFF\n{} {} 0\n", vertices.len(), faces.len());
+    for v in &vertices {
+        text += &format!("{} {} {}\n", v[0], v[1], v[2]);
+    }
+    for f in &faces {
+        text += &format!("4 {} {} {} {}\n", f[0], f[1], f[2], f[3]);
+    }
+    text
+}
+
+/// A U of seven unit cubes, read from its closed surface (`.off`): its centroid lies in the
+/// U's gap, outside the solid, so the fan from there reaches some faces from behind. Volume,
+/// centre of mass and inertia are the seven cubes' (each m/6 about its centre, moved by the
+/// parallel-axis theorem), which the fan's absolute volumes overcount.
+#[test]
+fn a_surface_not_star_shaped_about_its_centroid_has_the_solids_mass_properties() {
+    let cells = [
+        [0, 0, 0],
+        [1, 0, 0],
+        [2, 0, 0],
+        [0, 1, 0],
+        [0, 2, 0],
+        [2, 1, 0],
+        [2, 2, 0],
+    ];
+    let text = voxel_surface_off(&cells);
+    let mesh = tumble::io::parse_off(std::path::Path::new("u.off"), &text).unwrap();
+    let centres: Vec<DVec3> = (cells.iter())
+        .map(|c| DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64) + 0.5)
+        .collect();
+    let centroid = centres.iter().copied().sum::<DVec3>() / 7.0;
+    let mut inertia = DMat3::ZERO;
+    for c in &centres {
+        let d = *c - centroid;
+        let parallel_axis = DMat3::from_diagonal(DVec3::splat(d.length_squared()))
+            - DMat3::from_cols(d * d.x, d * d.y, d * d.z);
+        inertia += DMat3::from_diagonal(DVec3::splat(1.0 / 6.0)) + parallel_axis;
+    }
+    let s = shape(&mesh);
+    assert_close(s.volume, 7.0, 1e-13, "volume");
+    let apex = *mesh.vertices.last().unwrap();
+    assert_vec_close(apex, centroid, 1e-13, "fan apex at the centroid");
+    assert!(
+        (1.0..2.0).contains(&apex.x) && (1.0..2.0).contains(&apex.y),
+        "the centroid {apex} should lie in the gap, outside the solid"
+    );
+    for k in 0..3 {
+        for l in 0..3 {
+            let (got, want) = (s.unit_inertia.col(k)[l], inertia.col(k)[l]);
+            assert!(
+                (got - want).abs() < 1e-12,
+                "inertia ({k}, {l}): {got} vs {want}"
+            );
+        }
+    }
+    // The same fan by absolute volumes: what a star-shaped rule gives, too much mass.
+    let absolute = tumble::io::TetMesh {
+        volumes: tumble::io::TetVolumes::Absolute,
+        ..mesh
+    };
+    assert!(
+        shape(&absolute).volume > 7.5,
+        "the fan's absolute volumes should overcount"
+    );
+}
+
+/// The coursework's `.off` surfaces are convex: every fan tetrahedron faces its apex, so
+/// signed volumes give their absolute volumes' mass properties bit for bit (the coursework's
+/// scenes simulate as they did).
+#[test]
+fn convex_surfaces_have_the_same_bits_by_either_volume_rule() {
+    let Some(dir) = coursework_dir() else { return };
+    let mut read = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "off") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&path).unwrap();
+        let mesh = tumble::io::parse_off(&path, &text).unwrap();
+        assert_eq!(mesh.volumes, tumble::io::TetVolumes::Signed);
+        let absolute = tumble::io::TetMesh {
+            volumes: tumble::io::TetVolumes::Absolute,
+            ..mesh.clone()
+        };
+        let (signed, absolute) = (shape(&mesh), shape(&absolute));
+        let name = path.display().to_string();
+        assert_eq!(signed.volume, absolute.volume, "{name}: volume");
+        assert_eq!(
+            signed.unit_inertia, absolute.unit_inertia,
+            "{name}: inertia"
+        );
+        assert_eq!(
+            signed.rest_vertices, absolute.rest_vertices,
+            "{name}: centre of mass"
+        );
+        read += 1;
+    }
+    assert!(read >= 10, "only {read} .off meshes in {}", dir.display());
 }

@@ -1,10 +1,13 @@
 //! Object File Format surface meshes (`.off`). tumble simulates volumes, so the surface is
-//! tetrahedralised as a fan from its volume centroid to every triangle, which is exact for convex
-//! and star-shaped meshes.
+//! tetrahedralised as a fan from its volume centroid to every triangle. The fan's tetrahedra
+//! count by their signed volumes ([`TetVolumes::Signed`]), so the mass properties are those of
+//! the closed surface's solid whatever its shape (a bunny's ears, a U whose centroid lies in its
+//! gap); a convex surface's are the same bits either way. (The narrow phase collides the mesh's
+//! convex hull.)
 
 use super::limits::MAX_MESH_ELEMENTS;
 use super::tokens::{RecordLayout, Tokens};
-use super::{LoadError, TetMesh};
+use super::{LoadError, TetMesh, TetVolumes};
 use glam::DVec3;
 use std::collections::HashMap;
 use std::path::Path;
@@ -160,5 +163,6 @@ fn fan_tetrahedralise(
         vertices,
         tetrahedra,
         triangles,
+        volumes: TetVolumes::Signed,
     })
 }

@@ -1,7 +1,7 @@
 //! tumble's own meshes and generated scenes. `tumble gen-assets` writes them into `assets/` and
 //! `scenes/`; the built-in scenes embed those files.
 
-use crate::io::{TetMesh, write_medit};
+use crate::io::{TetMesh, TetVolumes, write_medit};
 use glam::DVec3;
 use std::f64::consts::PI;
 use std::fmt::Write;
@@ -35,6 +35,7 @@ fn convex_fan(mut vertices: Vec<DVec3>, mut triangles: Vec<[u32; 3]>) -> TetMesh
         vertices,
         tetrahedra,
         triangles,
+        volumes: TetVolumes::Absolute,
     }
 }
 

@@ -31,6 +31,6 @@ pub use body::RigidBody;
 pub use constraint::DistanceConstraint;
 pub use grab::Grab;
 pub use settings::{Choice, Settings};
-pub use shape::{Shape, TetMesh};
+pub use shape::{Shape, TetMesh, TetVolumes};
 pub use stats::{Stage, StepStats};
 pub use world::{World, WorldState};

@@ -12,6 +12,23 @@ pub struct TetMesh {
     pub vertices: Vec<DVec3>,
     pub tetrahedra: Vec<[u32; 4]>,
     pub triangles: Vec<[u32; 3]>,
+    /// How the tetrahedra's volumes count in the mass properties.
+    pub volumes: TetVolumes,
+}
+
+/// How a tetrahedron's volume counts in [`tet_mass_properties`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum TetVolumes {
+    /// Each tetrahedron by its absolute volume, as in the coursework's skeleton: tet meshers
+    /// differ on orientation, and a mesh that mixes both still has the same mass.
+    #[default]
+    Absolute,
+    /// Each tetrahedron by its signed volume: a fan from one apex over a closed surface wound
+    /// outward, where the tetrahedra over faces turned away from the apex count against the
+    /// others (the divergence theorem), so the sum is exact for any closed surface, not only one
+    /// star-shaped about the apex. Equal to [`TetVolumes::Absolute`], bit for bit, where every
+    /// face is turned towards the apex (a convex mesh, fanned from inside).
+    Signed,
 }
 
 /// Why a mesh cannot be a rigid body.
@@ -44,12 +61,18 @@ pub struct MassProperties {
 /// "How to find the inertia tensor (or other mass properties) of a 3D solid body represented by a
 /// triangle mesh", 2004); the inertia tensor is `trace(C) I - C`.
 ///
-/// `V` is each tetrahedron's absolute volume, as in the coursework's skeleton: tet meshers differ
-/// on orientation, and a mesh that mixes both still has the same mass.
-pub fn tet_mass_properties(vertices: &[DVec3], tetrahedra: &[[u32; 4]]) -> MassProperties {
+/// `V` is each tetrahedron's absolute or signed volume, as `volumes` says.
+pub fn tet_mass_properties(
+    vertices: &[DVec3],
+    tetrahedra: &[[u32; 4]],
+    volumes: TetVolumes,
+) -> MassProperties {
     let corners = |t: &[u32; 4]| t.map(|i| vertices[i as usize]);
     let signed_volume = |[a, b, c, d]: [DVec3; 4]| (b - a).dot((c - a).cross(d - a)) / 6.0;
-    let volume_of = |p: [DVec3; 4]| signed_volume(p).abs();
+    let volume_of = |p: [DVec3; 4]| match volumes {
+        TetVolumes::Absolute => signed_volume(p).abs(),
+        TetVolumes::Signed => signed_volume(p),
+    };
 
     let mut volume = 0.0;
     let mut moment = DVec3::ZERO;
@@ -128,7 +151,7 @@ impl Shape {
         if mesh.vertices.iter().any(|v| !v.is_finite()) {
             return Err(ShapeError::NonFinite);
         }
-        let props = tet_mass_properties(&mesh.vertices, &mesh.tetrahedra);
+        let props = tet_mass_properties(&mesh.vertices, &mesh.tetrahedra, mesh.volumes);
         let scale = mesh
             .vertices
             .iter()
