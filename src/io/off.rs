@@ -1,9 +1,9 @@
 //! Object File Format surface meshes (`.off`). tumble simulates volumes, so the surface is
 //! tetrahedralised as a fan from its volume centroid to every triangle. The fan's tetrahedra
 //! count by their signed volumes ([`TetVolumes::Signed`]), so the mass properties are those of
-//! the closed surface's solid whatever its shape (a bunny's ears, a U whose centroid lies in its
-//! gap); a convex surface's are the same bits either way. (The narrow phase collides the mesh's
-//! convex hull.)
+//! the closed surface's solid whatever its shape (a U whose centroid lies in its gap, outside
+//! the solid); a convex surface's are the same bits either way. (The narrow phase collides
+//! the mesh's convex hull.)
 
 use super::limits::MAX_MESH_ELEMENTS;
 use super::tokens::{RecordLayout, Tokens};
