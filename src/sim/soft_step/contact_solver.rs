@@ -905,7 +905,14 @@ impl Friction {
         }
         let spin = n.dot(b2.angular_velocity - b1.angular_velocity);
         let twist_limit = limit * self.twist_radius.max(MIN_TWIST_RADIUS);
-        let twist = (self.twist_impulse - self.twist_mass * spin).clamp(-twist_limit, twist_limit);
+        let twist = self.twist_impulse - self.twist_mass * spin;
+        // A load gone non-finite (a body past saving, frozen at the step's end) makes the limit
+        // NaN, where `clamp` would panic: the twist is then left as it is.
+        let twist = if twist_limit >= 0.0 {
+            twist.clamp(-twist_limit, twist_limit)
+        } else {
+            twist
+        };
         self.apply_twist(twist - self.twist_impulse, b1, b2);
         self.twist_impulse = twist;
     }
