@@ -567,6 +567,116 @@ fn cli_reports_errors_and_exits_nonzero() {
 
 /// An output that cannot be written is refused before the run, in the user's words (it used to
 /// fail after the whole run, naming the temporary `.NAME.partial` file and leaving it behind).
+/// A folder where a file is expected is called a folder, also when it stands beside a scene
+/// under its constraint file's name (it was passed over in silence); bytes that are not UTF-8
+/// are placed on their line; a file with no length to check first (a device) is cut off at the
+/// size limit instead of filling memory.
+#[test]
+fn folders_bytes_and_endless_files() {
+    let dir = Dir::new("folders");
+    std::fs::create_dir(dir.0.join("hollow.mesh")).unwrap();
+    expect(
+        load(&dir, "1\nhollow.mesh 1 0 0 0 0 1 0 0 0\n", None),
+        "s-scene.txt",
+        Some(2),
+        "'hollow.mesh' is a folder, not a file",
+    );
+    dir.write("t.mesh", TET);
+    std::fs::create_dir(dir.0.join("s-constraints.txt")).unwrap();
+    expect(
+        load(&dir, "1\nt.mesh 1 0 0 0 0 1 0 0 0\n", None),
+        "s-constraints.txt",
+        None,
+        "is a folder, not a file",
+    );
+    let bytes = dir.0.join("b-scene.txt");
+    std::fs::write(&bytes, b"1\nt.mesh 1 0 0 0 0 1 0 0 0\n\xff\n").unwrap();
+    expect(
+        tumble::scene::load_file(&bytes, &ConstraintsChoice::None, Settings::default()),
+        "b-scene.txt",
+        Some(3),
+        "invalid UTF-8 at byte 27",
+    );
+    let endless = std::path::Path::new("/dev/zero");
+    if endless.exists() {
+        expect(
+            tumble::scene::load_file(endless, &ConstraintsChoice::None, Settings::default()),
+            "/dev/zero",
+            None,
+            "more than the limit of 268435456 bytes",
+        );
+    }
+}
+
+/// An output never replaces a file the run reads, nor a pipe (written through a rename, it
+/// would become a plain file: `/dev/null` too, for a run as root); through a symbolic link it
+/// writes the file the link leads to, and the link stays.
+#[cfg(all(feature = "cli", unix))]
+#[test]
+fn cli_writes_no_output_over_an_input_a_pipe_or_a_link() {
+    let dir = Dir::new("cli-inputs");
+    let mesh = dir.write("t.mesh", TET);
+    let scene = dir.write("s-scene.txt", "1\nt.mesh 1 0 0 0 3 1 0 0 0\n");
+    let run = |out: &std::path::Path| -> Vec<std::ffi::OsString> {
+        let args = ["run", "--steps", "2", "--trajectory"].map(std::ffi::OsString::from);
+        let mut args = args.to_vec();
+        args.extend([out.into(), scene.clone().into()]);
+        args
+    };
+    let fails_saying = |out: &std::path::Path, words: &str| {
+        let args = run(out);
+        let args: Vec<&std::ffi::OsStr> = args.iter().map(|a| a.as_os_str()).collect();
+        cli_fails_saying(&args, words);
+    };
+    for input in [&scene, &mesh] {
+        let before = std::fs::read(input).unwrap();
+        let words = format!(
+            "cannot write {}: it is {}",
+            input.display(),
+            input.display()
+        );
+        fails_saying(input, &words);
+        assert_eq!(
+            std::fs::read(input).unwrap(),
+            before,
+            "{} changed",
+            input.display()
+        );
+    }
+    let pipe = dir.0.join("pipe");
+    let made = std::process::Command::new("mkfifo").arg(&pipe).status();
+    if made.is_ok_and(|s| s.success()) {
+        fails_saying(&pipe, "it is not a regular file");
+        use std::os::unix::fs::FileTypeExt;
+        let kind = std::fs::symlink_metadata(&pipe).unwrap().file_type();
+        assert!(kind.is_fifo(), "the pipe was replaced");
+    }
+    let (link, target) = (dir.0.join("link.csv"), dir.0.join("target.csv"));
+    std::os::unix::fs::symlink(&target, &link).unwrap();
+    std::fs::write(&target, "").unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))
+        .args(run(&link))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        std::fs::symlink_metadata(&link)
+            .unwrap()
+            .file_type()
+            .is_symlink()
+    );
+    let rows = std::fs::read_to_string(&target).unwrap();
+    assert_eq!(
+        rows.lines().count(),
+        1 + 3,
+        "header and three steps' rows: {rows}"
+    );
+}
+
 #[cfg(feature = "cli")]
 #[test]
 fn cli_refuses_an_output_it_cannot_write_before_running() {

@@ -231,6 +231,7 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     });
     let compare = compare_settings(args.compare.as_deref())?;
     let world = args.scene.load(args.settings.settings()?)?;
+    tumble::io::check_not_an_input(&args.output, &args.scene.input_files(&world))?;
     let options = RecordOptions {
         output: args.output.clone(),
         seconds: args.seconds,

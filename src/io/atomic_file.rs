@@ -16,19 +16,50 @@ pub fn partial_path(path: &Path) -> PathBuf {
     path.with_file_name(format!(".{name}.partial"))
 }
 
-/// Refuses an output path that cannot become a file (a folder, or a file in a folder that does
-/// not exist), so that a long run does not end in that error.
-pub fn check_output_path(path: &Path) -> anyhow::Result<()> {
-    if path.is_dir() {
-        anyhow::bail!("cannot write {}: it is a folder", path.display());
+/// Refuses an output path that cannot become a file: a folder, a file in a folder that does not
+/// exist (so that a long run does not end in that error), or a device, pipe or socket, which the
+/// rename into place would replace with a plain file (`--trajectory /dev/null` run as root
+/// replaced the machine's `/dev/null`). Returns the file to write: `path`, or for a symbolic
+/// link the file it leads to, so that the link stays a link.
+pub fn check_output_path(path: &Path) -> anyhow::Result<PathBuf> {
+    let shown = path.display();
+    let target = match std::fs::symlink_metadata(path) {
+        Ok(meta) if meta.file_type().is_symlink() => std::fs::canonicalize(path)
+            .with_context(|| format!("cannot write {shown}: it is a link to nothing"))?,
+        _ => path.to_path_buf(),
+    };
+    match std::fs::metadata(&target) {
+        Ok(meta) if meta.is_dir() => anyhow::bail!("cannot write {shown}: it is a folder"),
+        Ok(meta) if !meta.is_file() => anyhow::bail!(
+            "cannot write {shown}: it is not a regular file (a device, a pipe or a socket), and writing would replace it"
+        ),
+        _ => {}
     }
-    match path.parent().filter(|p| !p.as_os_str().is_empty()) {
+    match target.parent().filter(|p| !p.as_os_str().is_empty()) {
         Some(folder) if !folder.is_dir() => anyhow::bail!(
-            "cannot write {}: the folder {} does not exist",
-            path.display(),
+            "cannot write {shown}: the folder {} does not exist",
             folder.display()
         ),
-        _ => Ok(()),
+        _ => Ok(target),
+    }
+}
+
+/// Refuses to write `output` over one of the files the run reads (`--trajectory scene.txt`
+/// replaced the scene it was simulating).
+pub fn check_not_an_input(output: &Path, inputs: &[PathBuf]) -> anyhow::Result<()> {
+    let Ok(written) = std::fs::canonicalize(output) else {
+        return Ok(()); // Not there yet: no input.
+    };
+    match inputs
+        .iter()
+        .find(|input| std::fs::canonicalize(input).is_ok_and(|read| read == written))
+    {
+        Some(input) => anyhow::bail!(
+            "cannot write {}: it is {}, which this run reads",
+            output.display(),
+            input.display()
+        ),
+        None => Ok(()),
     }
 }
 
@@ -45,8 +76,8 @@ impl AtomicFile {
     /// Errors name `path`, the file the user asked for, not the temporary one; a folder or a
     /// missing parent folder is refused here, before any work is done for the file.
     pub fn create(path: &Path) -> anyhow::Result<Self> {
-        check_output_path(path)?;
-        let tmp = partial_path(path);
+        let target = check_output_path(path)?;
+        let tmp = partial_path(&target);
         let file = File::create(&tmp).with_context(|| {
             format!(
                 "cannot write {} (as {} first)",
@@ -55,7 +86,7 @@ impl AtomicFile {
             )
         })?;
         Ok(Self {
-            path: path.to_path_buf(),
+            path: target,
             tmp,
             writer: BufWriter::new(file),
             committed: false,

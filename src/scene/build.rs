@@ -69,9 +69,10 @@ pub(super) fn load_with(
     let constraint_path = match constraints {
         ConstraintsChoice::None => None,
         ConstraintsChoice::File(p) => Some(p.clone()),
-        ConstraintsChoice::Auto => {
-            super::default_constraints_path(path).filter(|p| source.exists(p))
-        }
+        // A folder under the constraint file's name is read, and refused as a folder, rather
+        // than passed over in silence.
+        ConstraintsChoice::Auto => super::default_constraints_path(path)
+            .filter(|p| source.exists(p) || source.is_folder(p)),
     };
     let mut distance_constraints = Vec::new();
     if let Some(cpath) = constraint_path {
@@ -157,11 +158,15 @@ fn load_shape(
         ));
     };
     if !source.exists(mesh_path) {
+        let problem = match source.is_folder(mesh_path) {
+            true => "is a folder, not a file",
+            false => "not found",
+        };
         return Err(LoadError::new(
             scene_path,
             Some(record.line),
             format!(
-                "mesh file '{}' not found (looked for {})",
+                "mesh file '{}' {problem} (looked for {})",
                 record.mesh_path,
                 mesh_path.display()
             ),

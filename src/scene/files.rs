@@ -69,6 +69,10 @@ const EMBEDDED: &[(&str, &str)] = &[
 pub(super) trait FileSource {
     fn read(&self, path: &Path) -> Result<String, LoadError>;
     fn exists(&self, path: &Path) -> bool;
+    /// Whether `path` is a folder (where a file was expected: said so, not "not found").
+    fn is_folder(&self, _path: &Path) -> bool {
+        false
+    }
 }
 
 pub(super) struct Disk;
@@ -78,7 +82,7 @@ impl FileSource for Disk {
         let meta = std::fs::metadata(path)
             .map_err(|e| LoadError::new(path, None, format!("cannot open: {e}")))?;
         if meta.is_dir() {
-            return Err(LoadError::new(path, None, "is a directory, not a file"));
+            return Err(LoadError::new(path, None, "is a folder, not a file"));
         }
         if meta.len() > limits::MAX_FILE_BYTES {
             return Err(LoadError::new(
@@ -91,22 +95,44 @@ impl FileSource for Disk {
                 ),
             ));
         }
-        let bytes = std::fs::read(path)
-            .map_err(|e| LoadError::new(path, None, format!("cannot read: {e}")))?;
+        let bytes = read_at_most(path, limits::MAX_FILE_BYTES)?;
         String::from_utf8(bytes).map_err(|e| {
+            let at = e.utf8_error().valid_up_to();
+            let line = 1 + e.as_bytes()[..at].iter().filter(|&&b| b == b'\n').count();
             LoadError::new(
                 path,
-                None,
-                format!(
-                    "not a text file (invalid UTF-8 at byte {})",
-                    e.utf8_error().valid_up_to()
-                ),
+                Some(line),
+                format!("not a text file (invalid UTF-8 at byte {at})"),
             )
         })
     }
     fn exists(&self, path: &Path) -> bool {
         path.is_file()
     }
+    fn is_folder(&self, path: &Path) -> bool {
+        path.is_dir()
+    }
+}
+
+/// The bytes of `path`, refused past `limit`: a device or a pipe has no length to check first
+/// (`tumble run /dev/zero` read until memory ran out).
+fn read_at_most(path: &Path, limit: u64) -> Result<Vec<u8>, LoadError> {
+    use std::io::Read;
+    let cannot = |e: std::io::Error| LoadError::new(path, None, format!("cannot read: {e}"));
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)
+        .map_err(cannot)?
+        .take(limit + 1)
+        .read_to_end(&mut bytes)
+        .map_err(cannot)?;
+    if bytes.len() as u64 > limit {
+        return Err(LoadError::new(
+            path,
+            None,
+            format!("more than the limit of {limit} bytes"),
+        ));
+    }
+    Ok(bytes)
 }
 
 pub(super) struct Embedded;
