@@ -305,6 +305,24 @@ fn mesh_volume_errors() {
         None,
         "too small",
     );
+    // Far from the origin a mesh is as degenerate as it is at the origin, no more: a unit
+    // tetrahedron at x = 10,000 or 1e8 loads with the volume it has there, a flat one does not.
+    let tet_at = |x: f64, last: &str| {
+        format!(
+            "MeshVersionFormatted 1\nDimension 3\nVertices\n4\n{x} 0 0 0\n{} 0 0 0\n{x} 1 0 0\n{last} 0\nTetrahedra\n1\n1 2 3 4 0\nEnd\n",
+            x + 1.0
+        )
+    };
+    for x in [1e4, 1e8] {
+        let world = mesh(&tet_at(x, &format!("{x} 0 1"))).unwrap_or_else(|e| panic!("{x}: {e}"));
+        let volume = world.shapes[0].volume;
+        assert!(
+            (volume - 1.0 / 6.0).abs() < 1e-9,
+            "at x = {x}: volume {volume}"
+        );
+        let flat = tet_at(x, &format!("{} 1 0", x + 1.0));
+        expect(mesh(&flat), "m.mesh", None, "zero volume");
+    }
     // A tetrahedron wound the other way is the same solid (as in the coursework's skeleton,
     // which takes each tetrahedron's absolute volume).
     assert!(mesh(&TET.replace("1 2 3 4 0", "2 1 3 4 0")).is_ok());

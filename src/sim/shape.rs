@@ -152,17 +152,24 @@ impl Shape {
             return Err(ShapeError::NonFinite);
         }
         let props = tet_mass_properties(&mesh.vertices, &mesh.tetrahedra, mesh.volumes);
-        let scale = mesh
-            .vertices
-            .iter()
-            .map(|v| v.abs().max_element())
-            .fold(0.0, f64::max);
+        // The mesh's own size (half its box's longest side), not its distance from the origin:
+        // a unit tetrahedron at x = 10,000 was refused as degenerate against 1e-12 * 10,000^3.
+        // (About the origin the two are the same, so no mesh that loaded before is refused.)
+        let (low, high) = mesh.vertices.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(low, high), v| (low.min(*v), high.max(*v)),
+        );
+        let scale = if mesh.vertices.is_empty() {
+            0.0
+        } else {
+            (0.5 * (high - low)).max_element()
+        };
         // The coordinates are finite, so a volume that is not finite overflowed on the way.
         if !props.volume.is_finite() {
             return Err(ShapeError::TooLarge);
         }
         // The degeneracy test below compares with the cube of the size, which underflows to
-        // zero for coordinates under about 1e-103 (and every volume with it).
+        // zero for sizes under about 1e-103 (and every volume with it).
         if scale > 0.0 && scale.powi(3) < 1e12 * f64::MIN_POSITIVE {
             return Err(ShapeError::TooSmall);
         }
