@@ -371,6 +371,28 @@ fn off_file_errors() {
         None,
         "encloses no volume",
     );
+    // Every face twice: each edge pairs up with a copy's, but the volume would count twice.
+    let corners = "0 0 0\n1 0 0\n0 1 0\n0 0 1\n";
+    let twice: Vec<&str> = TET_FACES.iter().chain(&TET_FACES).copied().collect();
+    expect(off(&tet_off(corners, &twice)), "m.off", None, "twice");
+    // The same face turned (the same vertices from another corner) is the same face.
+    let turned = ["3 2 1 0", "3 1 3 0", "3 3 2 0", "3 2 3 1"];
+    let twice: Vec<&str> = TET_FACES.iter().chain(&turned).copied().collect();
+    expect(off(&tet_off(corners, &twice)), "m.off", None, "twice");
+}
+
+/// A tetrahedron listed twice (in any order of its corners) would count its mass twice: named
+/// on its line, with the line of the first.
+#[test]
+fn repeated_tetrahedra_are_named() {
+    let dir = Dir::new("repeated-tet");
+    let twice = TET.replace("1\n1 2 3 4 0\n", "2\n1 2 3 4 0\n4 3 1 2 0\n");
+    expect(
+        load_medit(&dir, &twice),
+        "m.mesh",
+        Some(12),
+        "the four vertices of the one on line 11",
+    );
 }
 
 /// A unit right tetrahedron as OFF faces (outward), vertices 0 1 2 3 at the origin and the axes.

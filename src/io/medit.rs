@@ -102,6 +102,20 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
     for (tri, &line) in mesh.triangles.iter().zip(&tri_lines) {
         check_indices(&tokens, tri, n, line, "triangle")?;
     }
+    let corners = mesh.tetrahedra.iter().map(|t| {
+        let mut sorted = *t;
+        sorted.sort_unstable();
+        sorted
+    });
+    if let Some((first, again)) = super::first_repeat(corners) {
+        return Err(tokens.error(
+            tet_lines[again],
+            format!(
+                "this tetrahedron has the four vertices of the one on line {}: its mass would count twice",
+                tet_lines[first]
+            ),
+        ));
+    }
     Ok(mesh)
 }
 

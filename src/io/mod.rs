@@ -24,6 +24,19 @@ pub use scene_file::{SceneRecord, parse_scene};
 use std::fmt;
 use std::path::{Path, PathBuf};
 
+/// The first element that repeats an earlier one, by `keys` (one per element, in order): the
+/// places `(earlier, later)` of that pair, or None. A mesh that lists an element twice counts
+/// its volume twice.
+pub(crate) fn first_repeat<K: Ord>(keys: impl Iterator<Item = K>) -> Option<(usize, usize)> {
+    let mut keyed: Vec<(K, usize)> = keys.enumerate().map(|(k, key)| (key, k)).collect();
+    keyed.sort_unstable();
+    keyed
+        .windows(2)
+        .filter(|pair| pair[0].0 == pair[1].0)
+        .map(|pair| (pair[0].1, pair[1].1))
+        .min_by_key(|&(_, later)| later)
+}
+
 /// Hard limits on what a file may ask for, checked before anything is allocated, so a count of
 /// four billion vertices is an error rather than an out-of-memory abort.
 pub mod limits {

@@ -85,16 +85,26 @@ pub fn parse_off(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
 /// would be simulated with part of its mass. Vertices at the same point are one vertex, so a
 /// surface cut into patches along seams (as exporters write them for normals) is still closed.
 fn unmatched_edge(vertices: &[DVec3], triangles: &[[u32; 3]]) -> Option<String> {
-    let mut first_at: HashMap<[u64; 3], u32> = HashMap::new();
-    let weld: Vec<u32> = (0..vertices.len() as u32)
-        .map(|i| {
-            // (+ 0.0 makes -0.0 the same point as 0.0.)
-            let key = (vertices[i as usize] + DVec3::ZERO)
-                .to_array()
-                .map(f64::to_bits);
-            *first_at.entry(key).or_insert(i)
-        })
-        .collect();
+    let weld = welded(vertices);
+    let corners = |t: &[u32; 3]| t.map(|i| weld[i as usize]);
+    // A face listed twice pairs its edges with its own copy's, and would count twice.
+    // Turned to start at its least vertex: the same face wound the same way has the same key;
+    // a flat one (two corners at one point, no volume) has a key of its own.
+    let same_way = triangles.iter().enumerate().map(|(k, t)| {
+        let [a, b, c] = corners(t);
+        match (a < b && a < c, b < c) {
+            _ if a == b || b == c || c == a => Err(k),
+            (true, _) => Ok([a, b, c]),
+            (false, true) => Ok([b, c, a]),
+            (false, false) => Ok([c, a, b]),
+        }
+    });
+    if let Some((_, again)) = super::first_repeat(same_way) {
+        let [a, b, c] = corners(&triangles[again]);
+        return Some(format!(
+            "the surface has the triangle of vertices {a}, {b}, {c} (0-based) twice: its volume would count twice"
+        ));
+    }
     // Each edge a -> b counts +1 on (a, b) for a < b and -1 otherwise: 0 when its faces pair up.
     let mut balance: HashMap<(u32, u32), i32> = HashMap::new();
     for t in triangles {
@@ -117,6 +127,20 @@ fn unmatched_edge(vertices: &[DVec3], triangles: &[[u32; 3]]) -> Option<String> 
             "the faces on the edge between vertices {a} and {b} (0-based) are wound the same way: a closed surface's faces are all wound one way round"
         )
     })
+}
+
+/// Each vertex's first index at its point: vertices at the same point are one vertex.
+fn welded(vertices: &[DVec3]) -> Vec<u32> {
+    let mut first_at: HashMap<[u64; 3], u32> = HashMap::new();
+    (0..vertices.len() as u32)
+        .map(|i| {
+            // (+ 0.0 makes -0.0 the same point as 0.0.)
+            let key = (vertices[i as usize] + DVec3::ZERO)
+                .to_array()
+                .map(f64::to_bits);
+            *first_at.entry(key).or_insert(i)
+        })
+        .collect()
 }
 
 /// Builds tetrahedra (centroid, a, b, c) over a closed surface, orienting the triangles outward.
