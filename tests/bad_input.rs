@@ -323,6 +323,15 @@ fn mesh_volume_errors() {
         let flat = tet_at(x, &format!("{} 1 0", x + 1.0));
         expect(mesh(&flat), "m.mesh", None, "zero volume");
     }
+    // Finite volume, but a centre of mass or inertia past double precision (the volume times
+    // a coordinate, or its square): too large, not "coplanar" as it was called.
+    let huge = "1e80 0 0 0\n0 1e80 0 0\n0 0 1e80 0";
+    expect(
+        mesh(&TET.replace("1 0 0 0\n0 1 0 0\n0 0 1 0", huge)),
+        "m.mesh",
+        None,
+        "too large",
+    );
     // A tetrahedron wound the other way is the same solid (as in the coursework's skeleton,
     // which takes each tetrahedron's absolute volume).
     assert!(mesh(&TET.replace("1 2 3 4 0", "2 1 3 4 0")).is_ok());

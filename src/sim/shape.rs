@@ -40,7 +40,9 @@ pub enum ShapeError {
     NoHull,
     #[error("the mesh has non-finite coordinates")]
     NonFinite,
-    #[error("the mesh is too large: its volume overflows double precision")]
+    #[error(
+        "the mesh is too large: its volume, centre of mass or inertia overflows double precision"
+    )]
     TooLarge,
     #[error("the mesh is too small: its volume underflows double precision")]
     TooSmall,
@@ -164,8 +166,13 @@ impl Shape {
         } else {
             (0.5 * (high - low)).max_element()
         };
-        // The coordinates are finite, so a volume that is not finite overflowed on the way.
-        if !props.volume.is_finite() {
+        // The coordinates are finite, so a volume that is not finite overflowed on the way; so
+        // did a centre of mass or inertia (the volume times a coordinate, or its square: a
+        // tetrahedron of 1e80 was refused as "coplanar" after its centre of mass overflowed).
+        let overflowed = !props.volume.is_finite()
+            || !props.center_of_mass.is_finite()
+            || !props.unit_inertia.is_finite();
+        if overflowed {
             return Err(ShapeError::TooLarge);
         }
         // The degeneracy test below compares with the cube of the size, which underflows to
