@@ -390,6 +390,30 @@ fn off_file_errors() {
     expect(off(&tet_off(corners, &twice)), "m.off", None, "twice");
 }
 
+/// A surface of two closed parts, one wound inside out against the other, pairs every edge
+/// and encloses a positive volume; by signed volumes its far part weighs negatively and its
+/// inertia is not positive: refused, not simulated (a body with a negative moment blows up).
+#[test]
+fn a_surface_part_wound_inside_out_is_refused() {
+    let dir = Dir::new("inside-out");
+    let off = |text: &str| {
+        dir.write("m.off", text);
+        load(&dir, "1\nm.off 1 0 0 5 0 1 0 0 0\n", None)
+    };
+    let big = "0 0 0\n2 0 0\n0 2 0\n0 0 2\n";
+    let far = "100 0 0\n101 0 0\n100 1 0\n100 0 1\n";
+    let backwards = ["3 4 5 6", "3 4 7 5", "3 4 6 7", "3 5 7 6"];
+    let faces: Vec<&str> = TET_FACES.iter().chain(&backwards).copied().collect();
+    let both = tet_off(&format!("{big}{far}"), &faces);
+    expect(off(&both), "m.off", None, "wound inside out");
+    // Wound the same way, the two parts are one body of both masses.
+    let outward = ["3 4 6 5", "3 4 5 7", "3 4 7 6", "3 5 6 7"];
+    let faces: Vec<&str> = TET_FACES.iter().chain(&outward).copied().collect();
+    let world = off(&tet_off(&format!("{big}{far}"), &faces)).unwrap();
+    let volume = world.shapes[0].volume;
+    assert!((volume - 9.0 / 6.0).abs() < 1e-12, "volume {volume}");
+}
+
 /// A tetrahedron listed twice (in any order of its corners) would count its mass twice: named
 /// on its line, with the line of the first.
 #[test]
@@ -692,6 +716,29 @@ fn cli_writes_no_output_over_an_input_a_pipe_or_a_link() {
             input.display()
         );
     }
+    // A constraint file named for a built-in scene is read from disk too.
+    let constraints = dir.write("c.txt", "0\n");
+    let named = [
+        "run",
+        "cube",
+        "--steps",
+        "2",
+        "--constraints",
+        "c.txt",
+        "--trajectory",
+        "c.txt",
+    ];
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))
+        .args(named)
+        .current_dir(&dir.0)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("it is c.txt, which this run reads"),
+        "{stderr}"
+    );
+    assert_eq!(std::fs::read_to_string(&constraints).unwrap(), "0\n");
     let pipe = dir.0.join("pipe");
     let made = std::process::Command::new("mkfifo").arg(&pipe).status();
     if made.is_ok_and(|s| s.success()) {
@@ -700,30 +747,28 @@ fn cli_writes_no_output_over_an_input_a_pipe_or_a_link() {
         let kind = std::fs::symlink_metadata(&pipe).unwrap().file_type();
         assert!(kind.is_fifo(), "the pipe was replaced");
     }
-    let (link, target) = (dir.0.join("link.csv"), dir.0.join("target.csv"));
-    std::os::unix::fs::symlink(&target, &link).unwrap();
-    std::fs::write(&target, "").unwrap();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))
-        .args(run(&link))
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(
-        std::fs::symlink_metadata(&link)
-            .unwrap()
-            .file_type()
-            .is_symlink()
-    );
-    let rows = std::fs::read_to_string(&target).unwrap();
-    assert_eq!(
-        rows.lines().count(),
-        1 + 3,
-        "header and three steps' rows: {rows}"
-    );
+    // A link to a file there is, and one to a file not there yet (relative, beside the link).
+    for (name, exists) in [("target.csv", true), ("new.csv", false)] {
+        let (link, target) = (dir.0.join(format!("link-{name}")), dir.0.join(name));
+        std::os::unix::fs::symlink(name, &link).unwrap();
+        if exists {
+            std::fs::write(&target, "").unwrap();
+        }
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))
+            .args(run(&link))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{name}: {stderr}");
+        let kind = std::fs::symlink_metadata(&link).unwrap().file_type();
+        assert!(kind.is_symlink(), "{name}: the link was replaced");
+        let rows = std::fs::read_to_string(&target).unwrap();
+        assert_eq!(
+            rows.lines().count(),
+            1 + 3,
+            "{name}: header and three steps' rows"
+        );
+    }
 }
 
 #[cfg(feature = "cli")]

@@ -61,10 +61,13 @@ fn no_partial_files(dir: &Path) {
     }
 }
 
+/// Also through a symbolic link (on unix): the file it leads to is written, and the link stays.
 #[test]
 fn record_gif() {
     let dir = scratch("gif");
     let out = dir.join("mixed.gif");
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(dir.join("target.gif"), &out).unwrap();
     let Some(_) = run_rendering(
         tumble()
             .args([
@@ -97,6 +100,13 @@ fn record_gif() {
     assert_ne!(
         frames[0], frames[4],
         "the bodies fall between the first and last frame"
+    );
+    #[cfg(unix)]
+    assert!(
+        std::fs::symlink_metadata(&out)
+            .unwrap()
+            .file_type()
+            .is_symlink()
     );
     no_partial_files(&dir);
 }

@@ -235,26 +235,6 @@ impl SceneArgs {
         }
         Ok(world)
     }
-
-    /// The files on disk `world` was read from: the scene file, its constraint file and its
-    /// meshes (none for a built-in or generated scene), which no output may replace.
-    pub fn input_files(&self, world: &tumble::World) -> Vec<PathBuf> {
-        let scene = std::path::Path::new(&self.scene);
-        if !scene.is_file() {
-            return Vec::new();
-        }
-        let constraints = match constraints_choice(self.constraints.as_deref()) {
-            ConstraintsChoice::File(path) => Some(path),
-            ConstraintsChoice::Auto => tumble::scene::default_constraints_path(scene),
-            ConstraintsChoice::None => None,
-        };
-        let folder = scene.parent().unwrap_or(std::path::Path::new(""));
-        let meshes = world.shape_names.iter().map(|name| folder.join(name));
-        std::iter::once(scene.to_path_buf())
-            .chain(constraints)
-            .chain(meshes)
-            .collect()
-    }
 }
 
 /// Progress bar on stderr, hidden when stderr is not a terminal.

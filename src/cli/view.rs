@@ -223,7 +223,11 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
 pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     use tumble::viewer::{DrawOptions, OutputKind, RecordOptions};
     let kind = OutputKind::of(&args.output)?;
-    tumble::io::check_output_path(&args.output)?;
+    // A video file is written where a link leads; a folder of frames is the recorder's to check.
+    let output = match kind {
+        OutputKind::PngDir => args.output.clone(),
+        _ => tumble::io::check_output_path(&args.output)?,
+    };
     let (width, height) = args.size.unwrap_or(if kind == OutputKind::Gif {
         (640, 360)
     } else {
@@ -231,9 +235,9 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     });
     let compare = compare_settings(args.compare.as_deref())?;
     let world = args.scene.load(args.settings.settings()?)?;
-    tumble::io::check_not_an_input(&args.output, &args.scene.input_files(&world))?;
+    tumble::io::check_not_an_input(&output, &world.inputs)?;
     let options = RecordOptions {
-        output: args.output.clone(),
+        output,
         seconds: args.seconds,
         fps: args.fps,
         width,

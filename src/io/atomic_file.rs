@@ -24,8 +24,8 @@ pub fn partial_path(path: &Path) -> PathBuf {
 pub fn check_output_path(path: &Path) -> anyhow::Result<PathBuf> {
     let shown = path.display();
     let target = match std::fs::symlink_metadata(path) {
-        Ok(meta) if meta.file_type().is_symlink() => std::fs::canonicalize(path)
-            .with_context(|| format!("cannot write {shown}: it is a link to nothing"))?,
+        Ok(meta) if meta.file_type().is_symlink() => link_target(path)
+            .with_context(|| format!("cannot write {shown}: cannot follow the link"))?,
         _ => path.to_path_buf(),
     };
     match std::fs::metadata(&target) {
@@ -41,6 +41,21 @@ pub fn check_output_path(path: &Path) -> anyhow::Result<PathBuf> {
             folder.display()
         ),
         _ => Ok(target),
+    }
+}
+
+/// The file the link at `path` leads to: where it exists, the end of the chain; where it does
+/// not yet, the name the link holds (beside the link where it is relative).
+fn link_target(path: &Path) -> std::io::Result<PathBuf> {
+    match std::fs::canonicalize(path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            let named = std::fs::read_link(path)?;
+            Ok(match path.parent() {
+                Some(folder) if named.is_relative() => folder.join(named),
+                _ => named,
+            })
+        }
+        found => found,
     }
 }
 

@@ -74,6 +74,11 @@ pub(super) fn load_with(
         ConstraintsChoice::Auto => super::default_constraints_path(path)
             .filter(|p| source.exists(p) || source.is_folder(p)),
     };
+    let mut inputs: Vec<PathBuf> = Vec::new();
+    if source.on_disk() {
+        inputs.push(path.to_path_buf());
+        inputs.extend(shape_of_path.into_keys());
+    }
     let mut distance_constraints = Vec::new();
     if let Some(cpath) = constraint_path {
         // A user-named file is read from disk even when the scene is built in.
@@ -81,6 +86,9 @@ pub(super) fn load_with(
             ConstraintsChoice::File(_) => Disk.read(&cpath)?,
             _ => source.read(&cpath)?,
         };
+        if source.on_disk() || matches!(constraints, ConstraintsChoice::File(_)) {
+            inputs.push(cpath.clone());
+        }
         let parsed = parse_constraints(&cpath, &text)?;
         warnings.extend(parsed.layout_warning.map(|w| w.to_string()));
         distance_constraints =
@@ -88,6 +96,7 @@ pub(super) fn load_with(
     }
     let mut world = World::new(shapes, shape_names, bodies, distance_constraints, settings);
     world.warnings = warnings;
+    world.inputs = inputs;
     Ok(world)
 }
 

@@ -73,6 +73,10 @@ pub(super) trait FileSource {
     fn is_folder(&self, _path: &Path) -> bool {
         false
     }
+    /// Whether the files are the disk's (which a run's outputs must not replace).
+    fn on_disk(&self) -> bool {
+        false
+    }
 }
 
 pub(super) struct Disk;
@@ -106,11 +110,15 @@ impl FileSource for Disk {
             )
         })
     }
+    /// A file, or a device or pipe (read up to the limit), not a folder.
     fn exists(&self, path: &Path) -> bool {
-        path.is_file()
+        path.exists() && !path.is_dir()
     }
     fn is_folder(&self, path: &Path) -> bool {
         path.is_dir()
+    }
+    fn on_disk(&self) -> bool {
+        true
     }
 }
 

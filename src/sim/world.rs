@@ -37,6 +37,9 @@ pub struct World {
     pub step_count: u64,
     /// Notes from loading (ignored constraints, ...), for the user.
     pub warnings: Vec<String>,
+    /// The files on disk the world was read from (scene, meshes, constraints; none for a
+    /// built-in or generated scene): what no output of a run may replace.
+    pub inputs: Vec<std::path::PathBuf>,
     /// A point of a body pulled towards a target (the viewer's mouse drag), by both solvers.
     pub grab: Option<Grab>,
     /// Whether [`World::step`] times its stages ([`StepStats::timings`]; on by default, for the
@@ -78,6 +81,7 @@ impl World {
             time: 0.0,
             step_count: 0,
             warnings: Vec::new(),
+            inputs: Vec::new(),
             grab: None,
             time_stages: true,
             constraints_by_body,
