@@ -102,21 +102,32 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
     for (tri, &line) in mesh.triangles.iter().zip(&tri_lines) {
         check_indices(&tokens, tri, n, line, "triangle")?;
     }
-    let corners = mesh.tetrahedra.iter().map(|t| {
+    refuse_repeated_tetrahedra(&tokens, &mesh.tetrahedra, &tet_lines)?;
+    Ok(mesh)
+}
+
+/// A tetrahedron listed twice (its corners in any order), named on its line: its mass would
+/// count twice.
+fn refuse_repeated_tetrahedra(
+    tokens: &Tokens,
+    tetrahedra: &[[u32; 4]],
+    lines: &[usize],
+) -> Result<(), LoadError> {
+    let corners = tetrahedra.iter().map(|t| {
         let mut sorted = *t;
         sorted.sort_unstable();
         sorted
     });
-    if let Some((first, again)) = super::first_repeat(corners) {
-        return Err(tokens.error(
-            tet_lines[again],
+    match super::first_repeat(corners) {
+        Some((first, again)) => Err(tokens.error(
+            lines[again],
             format!(
                 "this tetrahedron has the four vertices of the one on line {}: its mass would count twice",
-                tet_lines[first]
+                lines[first]
             ),
-        ));
+        )),
+        None => Ok(()),
     }
-    Ok(mesh)
 }
 
 /// A `Vertices` section after its keyword: the count, then `x y z reference` records.

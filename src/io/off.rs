@@ -2,8 +2,8 @@
 //! tetrahedralised as a fan from its volume centroid to every triangle. The fan's tetrahedra
 //! count by their signed volumes ([`TetVolumes::Signed`]), so the mass properties are those of
 //! the closed surface's solid whatever its shape (a U whose centroid lies in its gap, outside
-//! the solid); a convex surface's are the same bits either way. (The narrow phase collides
-//! the mesh's convex hull.)
+//! the solid); a convex surface's are the same bits either way, but for faces of no area, whose
+//! rounding-level volumes now cancel. (The narrow phase collides the mesh's convex hull.)
 
 use super::limits::MAX_MESH_ELEMENTS;
 use super::tokens::{RecordLayout, Tokens};
@@ -87,7 +87,8 @@ pub fn parse_off(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
 fn unmatched_edge(vertices: &[DVec3], triangles: &[[u32; 3]]) -> Option<String> {
     let weld = welded(vertices);
     let corners = |t: &[u32; 3]| t.map(|i| weld[i as usize]);
-    // A face listed twice pairs its edges with its own copy's, and would count twice.
+    // A closed part listed twice pairs each edge with its copy's (one face twice alone leaves
+    // its edges unpaired, below), and would count twice.
     // Turned to start at its least vertex: the same face wound the same way has the same key;
     // a flat one (two corners at one point, no volume) has a key of its own.
     let same_way = triangles.iter().enumerate().map(|(k, t)| {

@@ -27,7 +27,8 @@ pub enum TetVolumes {
     /// outward, where the tetrahedra over faces turned away from the apex count against the
     /// others (the divergence theorem), so the sum is exact for any closed surface, not only one
     /// star-shaped about the apex. Equal to [`TetVolumes::Absolute`], bit for bit, where every
-    /// face is turned towards the apex (a convex mesh, fanned from inside).
+    /// tetrahedron's volume is positive (a convex mesh fanned from inside, without faces of no
+    /// area).
     Signed,
 }
 
@@ -46,6 +47,10 @@ pub enum ShapeError {
     TooLarge,
     #[error("the mesh is too small: its volume underflows double precision")]
     TooSmall,
+    #[error(
+        "the surface's inertia is not positive: a closed part of it is wound inside out against the rest"
+    )]
+    InsideOut,
 }
 
 /// Volume, centre of mass and inertia tensor (about the centre of mass, unit density) of a
@@ -154,35 +159,7 @@ impl Shape {
             return Err(ShapeError::NonFinite);
         }
         let props = tet_mass_properties(&mesh.vertices, &mesh.tetrahedra, mesh.volumes);
-        // The mesh's own size (half its box's longest side), not its distance from the origin:
-        // a unit tetrahedron at x = 10,000 was refused as degenerate against 1e-12 * 10,000^3.
-        // (About the origin the two are the same, so no mesh that loaded before is refused.)
-        let (low, high) = mesh.vertices.iter().fold(
-            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-            |(low, high), v| (low.min(*v), high.max(*v)),
-        );
-        let scale = if mesh.vertices.is_empty() {
-            0.0
-        } else {
-            (0.5 * (high - low)).max_element()
-        };
-        // The coordinates are finite, so a volume that is not finite overflowed on the way; so
-        // did a centre of mass or inertia (the volume times a coordinate, or its square: a
-        // tetrahedron of 1e80 was refused as "coplanar" after its centre of mass overflowed).
-        let overflowed = !props.volume.is_finite()
-            || !props.center_of_mass.is_finite()
-            || !props.unit_inertia.is_finite();
-        if overflowed {
-            return Err(ShapeError::TooLarge);
-        }
-        // The degeneracy test below compares with the cube of the size, which underflows to
-        // zero for sizes under about 1e-103 (and every volume with it).
-        if scale > 0.0 && scale.powi(3) < 1e12 * f64::MIN_POSITIVE {
-            return Err(ShapeError::TooSmall);
-        }
-        if props.volume <= 1e-12 * scale.powi(3) {
-            return Err(ShapeError::Degenerate);
-        }
+        check_mass_properties(&props, &mesh.vertices, mesh.volumes)?;
         let rest_vertices: Vec<DVec3> = mesh
             .vertices
             .iter()
@@ -212,6 +189,59 @@ impl Shape {
             local_box_half_extents: half,
         })
     }
+}
+
+/// Refuses mass properties no body can have: overflowed, underflowed, of no volume, or (signed
+/// volumes only) of an inertia that is not positive definite.
+fn check_mass_properties(
+    props: &MassProperties,
+    vertices: &[DVec3],
+    volumes: TetVolumes,
+) -> Result<(), ShapeError> {
+    // The mesh's own size (half its box's longest side), not its distance from the origin:
+    // a unit tetrahedron at x = 10,000 was refused as degenerate against 1e-12 * 10,000^3.
+    // (About the origin the two are the same, so no mesh that loaded before is refused as
+    // degenerate; one under about 1e-98 across, far from the origin, may now be refused as too
+    // small.)
+    let (low, high) = vertices.iter().fold(
+        (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        |(low, high), v| (low.min(*v), high.max(*v)),
+    );
+    let scale = if vertices.is_empty() {
+        0.0
+    } else {
+        (0.5 * (high - low)).max_element()
+    };
+    // The coordinates are finite, so a volume that is not finite overflowed on the way; so did
+    // a centre of mass or inertia (the volume times a coordinate, or its square: a tetrahedron
+    // of 1e80 was refused as "coplanar" after its centre of mass overflowed).
+    let overflowed = !props.volume.is_finite()
+        || !props.center_of_mass.is_finite()
+        || !props.unit_inertia.is_finite();
+    if overflowed {
+        return Err(ShapeError::TooLarge);
+    }
+    // The degeneracy test below compares with the cube of the size, which underflows to zero
+    // for sizes under about 1e-103 (and every volume with it).
+    if scale > 0.0 && scale.powi(3) < 1e12 * f64::MIN_POSITIVE {
+        return Err(ShapeError::TooSmall);
+    }
+    if props.volume <= 1e-12 * scale.powi(3) {
+        return Err(ShapeError::Degenerate);
+    }
+    // Absolute volumes sum positive semidefinite covariances; signed ones subtract those of a
+    // part wound inside out, which a surface whose parts pair their edges may have (a second
+    // cube, far off and wound backwards, gave a negative moment).
+    if volumes == TetVolumes::Signed && !positive_definite(props.unit_inertia) {
+        return Err(ShapeError::InsideOut);
+    }
+    Ok(())
+}
+
+/// Sylvester's criterion for a symmetric matrix: its leading principal minors are positive.
+fn positive_definite(m: DMat3) -> bool {
+    let (a, b, c) = (m.x_axis.x, m.x_axis.y, m.y_axis.y);
+    a > 0.0 && a * c - b * b > 0.0 && m.determinant() > 0.0
 }
 
 /// Whether `points` are the eight corners of the box `center +- half` (to a relative 1e-12).
