@@ -260,6 +260,15 @@ fn record_png_frames() {
     assert_eq!((w, h), (80, 60));
     let (_, _, last) = read_png(&out.join(&names[2]));
     assert_ne!(first, last);
+    // Into the folder, now there: recorded again (it was refused as "a folder").
+    let again = tumble()
+        .args(["record", "two-chain", "--seconds", "0.1", "--fps", "10"])
+        .args(["--size", "80x60", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&again.stderr);
+    assert!(again.status.success(), "{stderr}");
 }
 
 #[test]
