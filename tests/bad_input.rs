@@ -204,6 +204,12 @@ fn scene_file_errors() {
 }
 
 /// A scene of one body on the medit mesh `text`, written as `m.mesh` in `dir`.
+/// A scene of one body of `density` on the OFF surface `text`.
+fn load_off(dir: &Dir, text: &str, density: f64) -> Result<tumble::World, LoadError> {
+    dir.write("m.off", text);
+    load(dir, &format!("1\nm.off {density} 0 0 5 0 1 0 0 0\n"), None)
+}
+
 fn load_medit(dir: &Dir, text: &str) -> Result<tumble::World, LoadError> {
     dir.write("m.mesh", text);
     load(dir, "1\nm.mesh 1 0 0 0 0 1 0 0 0\n", None)
@@ -354,10 +360,7 @@ fn mesh_volume_errors() {
 #[test]
 fn off_file_errors() {
     let dir = Dir::new("off");
-    let off = |text: &str| {
-        dir.write("m.off", text);
-        load(&dir, "1\nm.off 1 0 0 0 0 1 0 0 0\n", None)
-    };
+    let off = |text: &str| load_off(&dir, text, 1.0);
     expect(
         off("OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 7\n"),
         "m.off",
@@ -396,10 +399,7 @@ fn off_file_errors() {
 #[test]
 fn a_surface_part_wound_inside_out_is_refused() {
     let dir = Dir::new("inside-out");
-    let off = |text: &str| {
-        dir.write("m.off", text);
-        load(&dir, "1\nm.off 1 0 0 5 0 1 0 0 0\n", None)
-    };
+    let off = |text: &str| load_off(&dir, text, 1.0);
     let big = "0 0 0\n2 0 0\n0 2 0\n0 0 2\n";
     let far = "100 0 0\n101 0 0\n100 1 0\n100 0 1\n";
     let backwards = ["3 4 5 6", "3 4 7 5", "3 4 6 7", "3 5 7 6"];
@@ -447,10 +447,7 @@ fn tet_off(vertices: &str, faces: &[&str]) -> String {
 #[test]
 fn off_surfaces_must_be_closed() {
     let dir = Dir::new("off-closed");
-    let off = |text: &str| {
-        dir.write("m.off", text);
-        load(&dir, "1\nm.off 6 0 0 5 0 1 0 0 0\n", None)
-    };
+    let off = |text: &str| load_off(&dir, text, 6.0);
     let corners = "0 0 0\n1 0 0\n0 1 0\n0 0 1\n";
     let whole = off(&tet_off(corners, &TET_FACES)).unwrap();
     assert!((whole.bodies[0].mass - 1.0).abs() < 1e-12, "6 x 1/6");
