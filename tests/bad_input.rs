@@ -347,6 +347,12 @@ fn mesh_volume_errors() {
         None,
         "no vertices",
     );
+    expect(
+        mesh(&TET.replace("Tetrahedra", "Vertices\n1\n2 2 2 0\nTetrahedra")),
+        "m.mesh",
+        Some(9),
+        "a second Vertices section",
+    );
     // CRLF, blank lines and an Edges section are fine.
     assert!(
         mesh(

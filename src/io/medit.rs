@@ -45,6 +45,10 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
                     ));
                 }
             }
+            // A second list would be numbered after the first, which no writer means.
+            "vertices" if seen_vertices => {
+                return Err(tokens.error(line, "a second Vertices section"));
+            }
             "vertices" => {
                 read_vertices(&mut tokens, &mut mesh.vertices)?;
                 seen_vertices = true;
