@@ -987,6 +987,8 @@ fn cli_warns_of_settings_the_solver_ignores() {
     assert!(!run(&["--friction", "0.3", "--accurate"]).contains("warning"));
     assert!(run(&["--dt", "0"]).contains("--dt 0: time does not advance"));
     assert!(run(&["--dt", "1e9"]).contains("--dt 1000000000: steps over 0.1 s"));
+    // Not three hundred digits.
+    assert!(run(&["--dt", "1e300"]).contains("--dt 1e300: steps over 0.1 s"));
     assert!(!run(&["--dt", "0.1"]).contains("warning"));
 }
 

@@ -167,7 +167,11 @@ impl SettingsArgs {
         if s.time_step > LONGEST_SENSIBLE_STEP {
             notes.push(format!(
                 "--dt {}: steps over {LONGEST_SENSIBLE_STEP} s let bodies sink deep into each other (the default is 0.02)",
-                s.time_step
+                if s.time_step >= 1e15 {
+                    format!("{:e}", s.time_step)
+                } else {
+                    s.time_step.to_string()
+                }
             ));
         }
         if s.solver == Solver::Coursework {
@@ -198,6 +202,16 @@ pub struct SceneArgs {
     /// Constraint file, or `none`. Default: X-constraints.txt beside X-scene.txt, if present.
     #[arg(long, value_name = "FILE|none")]
     pub constraints: Option<String>,
+}
+
+/// `x` with `decimals` places, or in scientific notation from a billion up (`--dt 1e300` printed
+/// three hundred digits).
+pub fn decimals(x: f64, decimals: usize) -> String {
+    if x.abs() >= 1e9 {
+        format!("{x:.decimals$e}")
+    } else {
+        format!("{x:.decimals$}")
+    }
 }
 
 /// A count given on the command line: clap's own message for "-1" is "invalid digit".

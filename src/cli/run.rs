@@ -257,12 +257,17 @@ fn print_summary(s: &RunSummary) {
         counted(records, "distance constraint", "distance constraints"),
     );
     println!(
-        "{} steps ({:.2} s simulated) in {:.3} s wall: {:.0} steps/s",
-        s.steps, s.sim_time, s.wall_s, s.steps_per_s
+        "{} steps ({} s simulated) in {:.3} s wall: {:.0} steps/s",
+        s.steps,
+        super::decimals(s.sim_time, 2),
+        s.wall_s,
+        s.steps_per_s
     );
     println!(
-        "contacts {} body-body, {} ground; deepest penetration {:.4}",
-        s.contacts, s.ground_contacts, s.max_penetration
+        "contacts {} body-body, {} ground; deepest penetration {}",
+        s.contacts,
+        s.ground_contacts,
+        super::decimals(s.max_penetration, 4)
     );
     let per_step = |n: usize| n as f64 / s.steps.max(1) as f64;
     println!(
