@@ -88,8 +88,8 @@ pub struct AtomicFile {
 }
 
 impl AtomicFile {
-    /// Errors name `path`, the file the user asked for, not the temporary one; a folder or a
-    /// missing parent folder is refused here, before any work is done for the file.
+    /// Errors name the file the user asked for (or the one its link leads to), not the temporary
+    /// one; what [`check_output_path`] refuses is refused here, before any work is done for it.
     pub fn create(path: &Path) -> anyhow::Result<Self> {
         let target = check_output_path(path)?;
         let tmp = partial_path(&target);

@@ -79,18 +79,18 @@ pub fn parse_off(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
     fan_tetrahedralise(file, vertices, triangles)
 }
 
-/// Why the surface does not bound a volume, if it does not: the first edge (by vertex index)
-/// whose faces do not pair up, one on each side and wound against each other. The fan below
-/// (the divergence theorem) is exact only for a closed, consistently wound surface; an open one
-/// would be simulated with part of its mass. Vertices at the same point are one vertex, so a
-/// surface cut into patches along seams (as exporters write them for normals) is still closed.
+/// Why the surface does not bound a volume once, if it does not: a face listed twice the same
+/// way round, or the first edge (by vertex index) whose faces do not pair up, one on each side
+/// and wound against each other. The fan below (the divergence theorem) is exact only for a
+/// closed, consistently wound surface; an open one would be simulated with part of its mass, a
+/// closed part listed twice (every edge paired with its copy's) with twice it. Vertices at the
+/// same point are one vertex, so a surface cut into patches along seams (as exporters write
+/// them for normals) is still closed.
 fn unmatched_edge(vertices: &[DVec3], triangles: &[[u32; 3]]) -> Option<String> {
     let weld = welded(vertices);
     let corners = |t: &[u32; 3]| t.map(|i| weld[i as usize]);
-    // A closed part listed twice pairs each edge with its copy's (one face twice alone leaves
-    // its edges unpaired, below), and would count twice.
-    // Turned to start at its least vertex: the same face wound the same way has the same key;
-    // a flat one (two corners at one point, no volume) has a key of its own.
+    // Each face turned to start at its least vertex, so the same face wound the same way has
+    // the same key; a flat one (two corners at one point, no volume) has a key of its own.
     let same_way = triangles.iter().enumerate().map(|(k, t)| {
         let [a, b, c] = corners(t);
         match (a < b && a < c, b < c) {

@@ -200,9 +200,9 @@ fn check_mass_properties(
 ) -> Result<(), ShapeError> {
     // The mesh's own size (half its box's longest side), not its distance from the origin:
     // a unit tetrahedron at x = 10,000 was refused as degenerate against 1e-12 * 10,000^3.
-    // (About the origin the two are the same, so no mesh that loaded before is refused as
-    // degenerate; one under about 1e-98 across, far from the origin, may now be refused as too
-    // small.)
+    // (The two are the same for a mesh centred on the origin, and the new one is the smaller
+    // elsewhere, so no mesh that loaded before is refused as degenerate; one under about 1e-98
+    // across, away from the origin, may now be refused as too small.)
     let (low, high) = vertices.iter().fold(
         (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
         |(low, high), v| (low.min(*v), high.max(*v)),
