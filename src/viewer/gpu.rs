@@ -61,6 +61,18 @@ impl Gpu {
                 adapter.get_info().name
             ))
         })?;
+        // Running out of memory (a frame of 16384 x 16384 with its multisampled and depth
+        // buffers) follows from what was asked, not from a bug: said, and the run ends, where
+        // wgpu's default handler panicked. Other errors are bugs and still panic.
+        device.on_uncaptured_error(std::sync::Arc::new(|error| match error {
+            wgpu::Error::OutOfMemory { .. } => {
+                eprintln!(
+                    "error: the GPU ran out of memory ({error}); a smaller --size needs less"
+                );
+                std::process::exit(1);
+            }
+            other => panic!("wgpu error: {other}"),
+        }));
         Ok(Gpu {
             instance,
             adapter,

@@ -13,7 +13,7 @@
 
 use super::camera::{CameraMatrices, OrbitCamera, scene_bounds};
 use super::compare::{self, Layout};
-use super::gpu::{Gpu, Image, NoGpu, Offscreen, buffer_init};
+use super::gpu::{Gpu, Image, Offscreen, buffer_init};
 use super::labels::{Label, LabelPainter};
 use super::layer::{Layer, vertex_usage};
 use super::overlay;
@@ -474,13 +474,22 @@ pub struct OffscreenRenderer {
 }
 
 impl OffscreenRenderer {
-    pub fn new(world: &World, width: u32, height: u32) -> Result<OffscreenRenderer, NoGpu> {
+    /// Fails with [`NoGpu`](super::gpu::NoGpu) without an adapter, or with the device's error when the frame's
+    /// buffers do not fit its memory.
+    pub fn new(world: &World, width: u32, height: u32) -> anyhow::Result<OffscreenRenderer> {
         let gpu = Gpu::headless()?;
         let format = wgpu::TextureFormat::Rgba8Unorm;
         let mut renderer = Renderer::new(&gpu, format.add_srgb_suffix());
         renderer.set_world(&gpu.device, world);
+        // Out of memory, the textures are invalid, and so are the views made of them.
+        let memory = gpu.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let invalid = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
         renderer.resize(&gpu.device, width, height);
         let target = Offscreen::new(&gpu.device, width, height, format);
+        let invalid = pollster::block_on(invalid.pop());
+        if let Some(error) = pollster::block_on(memory.pop()).or(invalid) {
+            anyhow::bail!("frames of {width}x{height} do not fit the GPU's memory: {error}");
+        }
         Ok(OffscreenRenderer {
             gpu,
             renderer,
