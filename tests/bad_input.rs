@@ -896,6 +896,14 @@ fn bench_options_out_of_range_are_named() {
         ),
         (["scale", "--steps", "0"], "--steps must be at least 1"),
         (
+            ["scale", "--steps", "18446744073709551615"],
+            "--steps must be at most 1000000, got 18446744073709551615",
+        ),
+        (
+            ["accuracy", "--dts", "1e-300"],
+            "--dts: time steps must lie in [0.00001, 1] s, got 1e-300",
+        ),
+        (
             ["scale", "--max-seconds", "-1"],
             "--max-seconds must be a positive number of seconds, got -1",
         ),
@@ -915,6 +923,26 @@ fn bench_options_out_of_range_are_named() {
         cli_fails_saying(&all, words);
     }
     assert!(!out_dir.exists(), "nothing written");
+    // A file where the folder should be is named before anything runs (it failed after the
+    // whole run with "File exists (os error 17)").
+    let file = std::env::temp_dir().join(format!("tumble-bench-file-{}", std::process::id()));
+    std::fs::write(&file, "").unwrap();
+    let args = [
+        "bench",
+        "accuracy",
+        "--scenarios",
+        "free-fall",
+        "--dts",
+        "0.04",
+        "--out",
+    ];
+    let mut all: Vec<&std::ffi::OsStr> = args.iter().map(std::ffi::OsStr::new).collect();
+    all.push(file.as_os_str());
+    cli_fails_saying(
+        &all,
+        &format!("--out {}: cannot make the folder", file.display()),
+    );
+    std::fs::remove_file(&file).unwrap();
     // The help lists every combination the bench knows.
     let help = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))
         .args(["bench", "accuracy", "--help"])

@@ -261,12 +261,33 @@ fn record(
         .insert(format!("{}", job.dt), row);
 }
 
+/// Shortest and longest time step `--dts` takes (s).
+const DT_RANGE: (f64, f64) = (1e-5, 1.0);
+
 /// Runs the sweep, writes `accuracy.csv` and one plot per scenario into `config.out`.
 pub fn run(config: &AccuracyConfig, progress: &dyn Progress) -> anyhow::Result<AccuracyReport> {
     if let Some(dt) = config.dts.iter().find(|dt| !(dt.is_finite() && **dt > 0.0)) {
         anyhow::bail!("--dts: time steps must be positive numbers of seconds, got {dt}");
     }
+    // Long enough to take a step within the longest scenario, short enough to finish: --dts
+    // 1e-300 ran for ever, 1e9 took no step and reported an error of zero.
+    if let Some(dt) = config
+        .dts
+        .iter()
+        .find(|dt| !(DT_RANGE.0..=DT_RANGE.1).contains(*dt))
+    {
+        let got = match dt.abs() {
+            x if x != 0.0 && !(1e-4..1e4).contains(&x) => format!("{dt:e}"),
+            _ => dt.to_string(),
+        };
+        anyhow::bail!(
+            "--dts: time steps must lie in [{}, {}] s, got {got}",
+            DT_RANGE.0,
+            DT_RANGE.1
+        );
+    }
     check_combinations(&config.combinations)?;
+    super::output_folder(&config.out)?;
     let (jobs, dts) = jobs(config);
     progress.start(jobs.len() as u64, "bench accuracy");
     let mut results = AccuracyResults::new();
@@ -288,9 +309,9 @@ pub fn run(config: &AccuracyConfig, progress: &dyn Progress) -> anyhow::Result<A
         progress.set_position(done as u64);
     }
     progress.finish();
-    std::fs::create_dir_all(&config.out)?;
+    super::output_folder(&config.out)?;
     let csv_path = config.out.join("accuracy.csv");
-    std::fs::write(&csv_path, csv)?;
+    super::write_named(&csv_path, csv)?;
     let plots = write_plots(&results, &config.out)?;
     Ok(AccuracyReport {
         machine: super::machine::Machine::detect(),

@@ -29,6 +29,27 @@ pub trait Progress: Sync {
     fn finish(&self);
 }
 
+/// Makes the folder a benchmark writes into and checks that a file can be written there, before
+/// the benchmark runs: `--out` naming a file, or a folder that cannot be written, failed after
+/// the whole run with "File exists (os error 17)" and threw its results away.
+#[cfg(feature = "bench")]
+pub fn output_folder(folder: &std::path::Path) -> anyhow::Result<()> {
+    use anyhow::Context;
+    let shown = folder.display();
+    std::fs::create_dir_all(folder)
+        .with_context(|| format!("--out {shown}: cannot make the folder"))?;
+    let probe = folder.join(".tumble-write-check");
+    std::fs::write(&probe, b"").with_context(|| format!("--out {shown}: cannot write there"))?;
+    std::fs::remove_file(&probe).with_context(|| format!("--out {shown}: cannot write there"))
+}
+
+/// `contents` into `path`, an error naming the file.
+#[cfg(feature = "bench")]
+pub fn write_named(path: &std::path::Path, contents: impl AsRef<[u8]>) -> anyhow::Result<()> {
+    use anyhow::Context;
+    std::fs::write(path, contents).with_context(|| format!("cannot write {}", path.display()))
+}
+
 /// No progress shown.
 pub struct Silent;
 

@@ -451,6 +451,7 @@ fn jobs(config: &ScaleConfig) -> (Vec<(String, usize, Variant)>, Vec<String>) {
 /// Measures every job, then writes `scale.csv` and one plot per scene family.
 pub fn run(config: &ScaleConfig, progress: &dyn Progress) -> anyhow::Result<ScaleReport> {
     let config = &config.effective();
+    super::output_folder(&config.out)?;
     let (jobs, left_out) = jobs(config);
     progress.start(jobs.len() as u64, "bench scale");
     let mut results: BTreeMap<String, BTreeMap<String, Measurement>> = BTreeMap::new();
@@ -465,9 +466,9 @@ pub fn run(config: &ScaleConfig, progress: &dyn Progress) -> anyhow::Result<Scal
     }
     repeat_short_runs(&jobs, &mut results, config, progress)?;
     progress.finish();
-    std::fs::create_dir_all(&config.out)?;
+    super::output_folder(&config.out)?;
     let csv = config.out.join("scale.csv");
-    std::fs::write(&csv, csv_text(&results))?;
+    super::write_named(&csv, csv_text(&results))?;
     let plots = write_plots(&results, &config.scenes, &config.out)?;
     Ok(ScaleReport {
         machine: super::machine::Machine::detect(),

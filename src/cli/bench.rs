@@ -98,6 +98,9 @@ fn parse_variant(name: &str) -> Result<Variant, String> {
     })
 }
 
+/// Most measured steps `bench scale` takes per run.
+const MAX_SCALE_STEPS: usize = 1_000_000;
+
 /// Sizes a generated scene can have, at least one measured step, and a positive time cap.
 fn check_scale_args(args: &ScaleArgs) -> anyhow::Result<()> {
     use tumble::scene::MAX_GENERATED;
@@ -113,6 +116,13 @@ fn check_scale_args(args: &ScaleArgs) -> anyhow::Result<()> {
     }
     if args.steps == 0 {
         anyhow::bail!("--steps must be at least 1");
+    }
+    // Each measured step's time is kept: 2^64 steps asked for that many at once and panicked.
+    if args.steps > MAX_SCALE_STEPS {
+        anyhow::bail!(
+            "--steps must be at most {MAX_SCALE_STEPS}, got {}",
+            args.steps
+        );
     }
     if !(args.max_seconds > 0.0 && args.max_seconds.is_finite()) {
         anyhow::bail!(
