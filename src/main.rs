@@ -23,7 +23,8 @@ enum Command {
     Record(cli::view::RecordArgs),
     /// Simulate headless and print a summary (or JSON).
     Run(cli::run::RunArgs),
-    /// Benchmarks: `scale` (run time against scene size) and `accuracy` (error against run time).
+    /// Benchmarks: `scale` (run time against scene size), `accuracy` (error against run time) and
+    /// `soak` (100,000 steps: drift, violation, energy).
     #[command(subcommand)]
     Bench(BenchCommand),
     /// List the built-in scenes and the generated families.

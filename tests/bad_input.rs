@@ -922,6 +922,15 @@ fn bench_options_out_of_range_are_named() {
         all.extend(["--out".as_ref(), out_dir.as_os_str()]);
         cli_fails_saying(&all, words);
     }
+    #[cfg(not(feature = "compare-rapier"))]
+    cli_fails_saying(
+        &["bench", "scale", "--variants", "rapier", "--quick", "--out"]
+            .map(std::ffi::OsStr::new)
+            .into_iter()
+            .chain([out_dir.as_os_str()])
+            .collect::<Vec<_>>(),
+        "--variants rapier: this build has no Rapier",
+    );
     assert!(!out_dir.exists(), "nothing written");
     // A file where the folder should be is named before anything runs (it failed after the
     // whole run with "File exists (os error 17)").

@@ -97,7 +97,7 @@ impl Variant {
         Variant::ALL.into_iter().find(|v| v.name() == name)
     }
 
-    fn is_rapier(self) -> bool {
+    pub fn is_rapier(self) -> bool {
         matches!(self, Variant::Rapier | Variant::RapierAccurate)
     }
 

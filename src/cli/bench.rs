@@ -140,6 +140,16 @@ pub fn scale(args: &ScaleArgs) -> anyhow::Result<()> {
         }
     }
     check_scale_args(args)?;
+    // Asked for by name, as `bench accuracy --combinations rapier` is refused: not an empty
+    // table and a zero exit.
+    if let Some(v) = args.variants.iter().find(|v| v.is_rapier())
+        && !cfg!(feature = "compare-rapier")
+    {
+        anyhow::bail!(
+            "--variants {}: this build has no Rapier; build with --features compare-rapier",
+            v.name()
+        );
+    }
     let variants = match args.variants.is_empty() {
         true => Variant::ALL.to_vec(),
         false => args.variants.clone(),
