@@ -354,6 +354,59 @@ fn record_errors_are_clear() {
         .output()
         .unwrap();
     assert!(!output.status.success());
+
+    // A step too short to finish (5e-324 never advanced the time, past Ctrl-C).
+    for (dt, words) in [
+        (
+            "5e-324",
+            "--dt 5e-324: inf steps to record 0.2 s, more than 1e8",
+        ),
+        ("1e-12", "--dt 1e-12: 2.0e11 steps to record 0.2 s"),
+    ] {
+        let output = tumble()
+            .args(["record", "cube", "--seconds", "0.2", "--dt", dt, "-o"])
+            .arg(dir.join("d.gif"))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(
+            !output.status.success() && stderr.contains(words),
+            "{stderr}"
+        );
+    }
+}
+
+/// `view --screenshot` is checked as the other outputs are, before any window opens: not over
+/// the scene it shows (it replaced it with a PNG), and a PNG by name.
+#[test]
+fn screenshots_are_pngs_and_replace_no_input() {
+    let dir = scratch("shot-inputs");
+    let scene = dir.join("s-scene.txt");
+    let box_mesh = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/box.mesh");
+    std::fs::copy(&box_mesh, dir.join("box.mesh")).unwrap();
+    std::fs::write(&scene, "1\nbox.mesh 1 0 0 3 0 1 0 0 0\n").unwrap();
+    let link = dir.join("shot.png");
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(&scene, &link).unwrap();
+    let before = std::fs::read(&scene).unwrap();
+    let mut cases = vec![(dir.join("shot.jpg"), "a screenshot is a PNG; name it .png")];
+    if cfg!(unix) {
+        cases.push((link.clone(), "which this run reads"));
+    }
+    for (shot, words) in cases {
+        let output = tumble()
+            .args(["view", "--frames", "1", "--screenshot"])
+            .arg(&shot)
+            .arg(&scene)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(
+            !output.status.success() && stderr.contains(words),
+            "{stderr}"
+        );
+    }
+    assert_eq!(std::fs::read(&scene).unwrap(), before, "the scene changed");
 }
 
 #[test]

@@ -198,6 +198,19 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
             .map_err(anyhow::Error::msg)?;
     }
     let world = args.scene.load(args.settings.settings()?)?;
+    // Checked as the other outputs are: `--screenshot scene.txt` replaced the scene with a PNG.
+    if let Some(shot) = &args.screenshot {
+        let png = shot
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+        anyhow::ensure!(
+            png,
+            "--screenshot {}: a screenshot is a PNG; name it .png",
+            shot.display()
+        );
+        tumble::io::check_output_path(shot)?;
+        tumble::io::check_not_an_input(shot, &world.inputs)?;
+    }
     let options = tumble::viewer::ViewOptions {
         scene: args.scene.scene.clone(),
         width: args.size.0,

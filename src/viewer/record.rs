@@ -413,6 +413,9 @@ pub struct RecordOptions {
     pub compare: Option<Settings>,
 }
 
+/// Most steps a recording takes (of each world).
+const MAX_RECORD_STEPS: f64 = 1e8;
+
 impl RecordOptions {
     /// Rejects settings that cannot make a recording, with simulation time step `dt`.
     fn check(&self, dt: f64) -> anyhow::Result<()> {
@@ -420,6 +423,14 @@ impl RecordOptions {
             anyhow::ensure!(
                 dt.is_finite() && dt > 0.0,
                 "the time step must be positive to record, got {dt}"
+            );
+            // --dt 5e-324 stepped for ever (time plus the step is the time again), past Ctrl-C,
+            // which is asked between frames.
+            let steps = self.seconds / dt;
+            anyhow::ensure!(
+                steps <= MAX_RECORD_STEPS,
+                "--dt {dt:e}: {steps:.1e} steps to record {} s, more than {MAX_RECORD_STEPS:.0e}",
+                self.seconds
             );
         }
         anyhow::ensure!(
