@@ -124,7 +124,14 @@ fn bodies_that_blow_up_are_named_and_the_run_goes_on() {
 #[cfg(unix)]
 #[test]
 fn trajectory_survives_ctrl_c() {
-    let dir = std::env::temp_dir().join(format!("tumble-run-sigint-{}", std::process::id()));
+    // And SIGTERM (`timeout`'s), which left the partial file behind.
+    for (signal, status) in [(libc::SIGINT, 130), (libc::SIGTERM, 143)] {
+        trajectory_survives(signal, status);
+    }
+}
+
+fn trajectory_survives(signal: libc::c_int, status: i32) {
+    let dir = std::env::temp_dir().join(format!("tumble-run-sig{signal}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("trajectory.csv");
@@ -137,11 +144,11 @@ fn trajectory_survives_ctrl_c() {
     std::thread::sleep(std::time::Duration::from_millis(1500));
     // SAFETY: sending a signal to our own child process.
     unsafe {
-        libc::kill(child.id() as libc::pid_t, libc::SIGINT);
+        libc::kill(child.id() as libc::pid_t, signal);
     }
     let output = child.wait_with_output().unwrap();
     let stderr = String::from_utf8_lossy(&output.stderr);
-    assert_eq!(output.status.code(), Some(130), "{stderr}");
+    assert_eq!(output.status.code(), Some(status), "{stderr}");
     assert!(stderr.contains("interrupted after"), "{stderr}");
     // Every completed step is there, whole: step 0 plus each step, 504 bodies each.
     let text = std::fs::read_to_string(&out).unwrap();

@@ -110,8 +110,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         print_summary(&summary);
     }
     if interrupted {
-        // The conventional status of a run stopped by SIGINT.
-        std::process::exit(130);
+        std::process::exit(super::interrupt::exit_status());
     }
     Ok(())
 }

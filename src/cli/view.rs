@@ -297,12 +297,11 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     );
     if report.interrupted {
         eprintln!(
-            "interrupted (Ctrl-C): {} holds the {} frames rendered before it",
+            "interrupted: {} holds the {} frames rendered before it",
             args.output.display(),
             report.frames
         );
-        // The shell's convention for "stopped by SIGINT".
-        std::process::exit(130);
+        std::process::exit(super::interrupt::exit_status());
     }
     Ok(())
 }
