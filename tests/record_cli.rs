@@ -51,6 +51,16 @@ fn run_rendering(command: &mut Command) -> Option<Output> {
     Some(output)
 }
 
+/// Runs `command`, which must fail saying `words`.
+fn fails_saying(command: &mut Command, words: &str) {
+    let output = command.output().unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        !output.status.success() && stderr.contains(words),
+        "{stderr}"
+    );
+}
+
 fn no_partial_files(dir: &Path) {
     for entry in std::fs::read_dir(dir).unwrap().flatten() {
         assert!(
@@ -363,16 +373,8 @@ fn record_errors_are_clear() {
         ),
         ("1e-12", "--dt 1e-12: 2.0e11 steps to record 0.2 s"),
     ] {
-        let output = tumble()
-            .args(["record", "cube", "--seconds", "0.2", "--dt", dt, "-o"])
-            .arg(dir.join("d.gif"))
-            .output()
-            .unwrap();
-        let stderr = String::from_utf8_lossy(&output.stderr);
-        assert!(
-            !output.status.success() && stderr.contains(words),
-            "{stderr}"
-        );
+        let record = ["record", "cube", "--seconds", "0.2", "--dt", dt, "-o"];
+        fails_saying(tumble().args(record).arg(dir.join("d.gif")), words);
     }
 }
 
@@ -394,17 +396,8 @@ fn screenshots_are_pngs_and_replace_no_input() {
         cases.push((link.clone(), "which this run reads"));
     }
     for (shot, words) in cases {
-        let output = tumble()
-            .args(["view", "--frames", "1", "--screenshot"])
-            .arg(&shot)
-            .arg(&scene)
-            .output()
-            .unwrap();
-        let stderr = String::from_utf8_lossy(&output.stderr);
-        assert!(
-            !output.status.success() && stderr.contains(words),
-            "{stderr}"
-        );
+        let view = ["view", "--frames", "1", "--screenshot"];
+        fails_saying(tumble().args(view).arg(&shot).arg(&scene), words);
     }
     assert_eq!(std::fs::read(&scene).unwrap(), before, "the scene changed");
 }
