@@ -152,7 +152,7 @@ impl OrbitCamera {
         })?;
         if !matches!(values.len(), 2 | 3 | 6) || values.iter().any(|v| !v.is_finite()) {
             return Err(format!(
-                "--camera '{spec}': expected YAW,PITCH[,DISTANCE[,X,Y,Z]] (2, 3 or 6 numbers)"
+                "--camera '{spec}': expected YAW,PITCH[,DISTANCE[,X,Y,Z]] (2, 3 or 6 finite numbers)"
             ));
         }
         self.yaw = values[0].to_radians();
@@ -198,5 +198,7 @@ mod tests {
         assert_eq!(cam.target, DVec3::new(1.0, 2.0, 3.0));
         assert!(cam.apply_spec("1").is_err());
         assert!(cam.apply_spec("a,b").is_err());
+        let nan = cam.apply_spec("NaN,25").unwrap_err();
+        assert!(nan.contains("2, 3 or 6 finite numbers"), "{nan}");
     }
 }
