@@ -121,6 +121,30 @@ fn record_gif() {
     no_partial_files(&dir);
 }
 
+/// A GIF above 50 fps is recorded, with a warning: players show frames under 2 cs at 10 cs.
+#[test]
+fn fast_gifs_are_warned_of() {
+    let dir = scratch("fast-gif");
+    let fast = [
+        "record",
+        "cube",
+        "--fps",
+        "100",
+        "--seconds",
+        "0.02",
+        "--size",
+        "32x32",
+    ];
+    let Some(output) = run_rendering(tumble().args(fast).arg("-o").arg(dir.join("f.gif"))) else {
+        return;
+    };
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("warning: --fps 100: most players show GIF frames"),
+        "{stderr}"
+    );
+}
+
 /// Decoded RGBA frames of a GIF, with its size.
 fn gif_frames(path: &Path) -> (u16, u16, Vec<Vec<u8>>) {
     let mut options = gif::DecodeOptions::new();

@@ -241,6 +241,14 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
         OutputKind::PngDir => args.output.clone(),
         _ => tumble::io::check_output_path(&args.output)?,
     };
+    // GIF delays are whole centiseconds, and players show those under 2 at 10 (browsers, most
+    // viewers): above 50 fps the file plays slower than it was recorded.
+    if kind == OutputKind::Gif && args.fps > 50.0 {
+        eprintln!(
+            "warning: --fps {}: most players show GIF frames shorter than 1/50 s at 1/10 s",
+            args.fps
+        );
+    }
     let (width, height) = args.size.unwrap_or(if kind == OutputKind::Gif {
         (640, 360)
     } else {
