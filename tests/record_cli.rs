@@ -447,6 +447,17 @@ fn view_without_display_points_to_record_and_run() {
         );
         assert!(!stderr.contains("panicked"), "{stderr}");
     }
+    // A DISPLAY that names no X server: said so, not that none is set.
+    let output = tumble()
+        .args(["view", "mixed"])
+        .env("DISPLAY", ":987")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("cannot open a window"), "{stderr}");
+    assert!(!stderr.contains("neither DISPLAY"), "{stderr}");
 }
 
 fn on_path(program: &str) -> bool {

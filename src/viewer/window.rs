@@ -11,8 +11,8 @@ use std::sync::Arc;
 use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::window::Window;
 
-const NO_DISPLAY: &str = "tumble view needs a display, and neither DISPLAY nor WAYLAND_DISPLAY is set.\n\
-     Without a window you can:\n  \
+/// What to do without a window, said after each reason there is none.
+const WITHOUT_A_WINDOW: &str = "Without a window you can:\n  \
      tumble record SCENE -o out.mp4   render a video offscreen (.mp4, .gif, or a directory of PNG frames)\n  \
      tumble run SCENE                 simulate headless and print a summary\n\
      or run the viewer under a virtual display: xvfb-run -a tumble view SCENE";
@@ -39,14 +39,16 @@ fn choose_display() -> anyhow::Result<Display> {
         };
         if !socket.exists() {
             bail!(
-                "WAYLAND_DISPLAY is {} but there is no compositor socket at {}.\n{NO_DISPLAY}",
+                "WAYLAND_DISPLAY is {} but there is no compositor socket at {}.\n{WITHOUT_A_WINDOW}",
                 name.display(),
                 socket.display()
             );
         }
         return Ok(Display::Wayland);
     }
-    bail!("{NO_DISPLAY}")
+    bail!(
+        "tumble view needs a display, and neither DISPLAY nor WAYLAND_DISPLAY is set.\n{WITHOUT_A_WINDOW}"
+    )
 }
 
 /// The event loop on the display the environment names, or an error saying what to do
@@ -72,8 +74,10 @@ pub fn open_event_loop() -> anyhow::Result<EventLoop<()>> {
     });
     match result {
         Ok(Ok(event_loop)) => Ok(event_loop),
-        Ok(Err(e)) => bail!("cannot open a window ({e}).\n{NO_DISPLAY}"),
-        Err(_) => bail!("cannot open a window (the windowing system panicked).\n{NO_DISPLAY}"),
+        Ok(Err(e)) => bail!("cannot open a window ({e}).\n{WITHOUT_A_WINDOW}"),
+        Err(_) => {
+            bail!("cannot open a window (the windowing system panicked).\n{WITHOUT_A_WINDOW}")
+        }
     }
 }
 
