@@ -452,6 +452,26 @@ fn panel_texts(session: &mut Session) -> Vec<String> {
         .collect()
 }
 
+/// Settings from the command line beyond the panel's slider ranges stay as given until a slider
+/// is dragged (the first frame clamped them, unsaid).
+#[test]
+fn the_panel_keeps_settings_beyond_its_sliders() {
+    let given = Settings {
+        time_step: 0.08,
+        friction: 2.0,
+        max_iterations: 1_000_000,
+        ..Settings::accurate()
+    };
+    let mut s = session("two-chain", given.clone());
+    let texts = panel_texts(&mut s);
+    assert!(texts.iter().any(|t| t.contains("time step")), "{texts:?}");
+    let kept = &s.world().settings;
+    assert_eq!(
+        (kept.time_step, kept.friction, kept.max_iterations),
+        (given.time_step, given.friction, given.max_iterations)
+    );
+}
+
 /// The scene's load warnings show in the panel (a window has no terminal for them), and the
 /// constraints are counted as the file's records.
 #[test]

@@ -492,16 +492,25 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
         constraint_schedule,
     } = settings;
     enum_choice(ui, "solver", solver);
+    // The sliders clamp only what is dragged: a value from the command line beyond a slider's
+    // range (`view --dt 0.08`, `--friction 2`) was clamped to it in the first frame, unsaid.
+    let edits = egui::SliderClamping::Edits;
     ui.add(egui::Slider::new(restitution, 0.0..=1.0).text("restitution"));
-    ui.add(egui::Slider::new(friction, 0.0..=1.5).text("friction"))
-        .on_hover_text("Coulomb friction coefficient (soft-step solver; the coursework has none)");
+    ui.add(
+        egui::Slider::new(friction, 0.0..=1.5)
+            .clamping(edits)
+            .text("friction"),
+    )
+    .on_hover_text("Coulomb friction coefficient (soft-step solver; the coursework has none)");
     ui.add(
         egui::Slider::new(time_step, 0.0005..=0.05)
+            .clamping(edits)
             .logarithmic(true)
             .text("time step (s)"),
     );
     ui.add(
         egui::Slider::new(max_iterations, 1..=100_000)
+            .clamping(edits)
             .logarithmic(true)
             .text("max iterations"),
     )
