@@ -474,8 +474,8 @@ pub struct OffscreenRenderer {
 }
 
 impl OffscreenRenderer {
-    /// Fails with [`NoGpu`](super::gpu::NoGpu) without an adapter, or with the device's error when the frame's
-    /// buffers do not fit its memory.
+    /// Fails with [`NoGpu`](super::gpu::NoGpu) without an adapter, or with the device's error
+    /// when the frame's buffers do not fit its memory.
     pub fn new(world: &World, width: u32, height: u32) -> anyhow::Result<OffscreenRenderer> {
         let gpu = Gpu::headless()?;
         let format = wgpu::TextureFormat::Rgba8Unorm;
