@@ -389,6 +389,11 @@ fn record_errors_are_clear() {
         .unwrap();
     assert!(!output.status.success());
 
+    // A frame rate ffmpeg cannot read (it failed with its own parse error).
+    let slow = ["record", "mixed", "--fps", "1e-300", "-o"];
+    let words = "--fps 1e-300: an MP4 takes at least 0.01 frames a second";
+    fails_saying(tumble().args(slow).arg(dir.join("slow.mp4")), words);
+
     // A step too short to finish (5e-324 never advanced the time, past Ctrl-C).
     for (dt, words) in [
         (

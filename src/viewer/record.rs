@@ -302,6 +302,12 @@ impl FrameWriter {
                 "GIF frames are at most 65535 pixels wide and tall"
             ),
             OutputKind::Mp4 => {
+                // ffmpeg reads the rate as a decimal: 1e-300 came out as three hundred digits it
+                // would not parse.
+                anyhow::ensure!(
+                    fps >= MIN_MP4_FPS,
+                    "--fps {fps:e}: an MP4 takes at least {MIN_MP4_FPS} frames a second"
+                );
                 if !ffmpeg_on_path() {
                     bail!(
                         "cannot write {}: ffmpeg is not on PATH. Install it (e.g. `apt-get install ffmpeg`), or record to a .gif or to a directory of PNG frames",
@@ -412,6 +418,9 @@ pub struct RecordOptions {
     /// by side or a ghost, as `draw.layout` says), each labelled.
     pub compare: Option<Settings>,
 }
+
+/// Fewest frames a second an MP4 is recorded at.
+const MIN_MP4_FPS: f64 = 0.01;
 
 /// Most steps a recording takes (of each world).
 const MAX_RECORD_STEPS: f64 = 1e8;
