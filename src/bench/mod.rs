@@ -38,7 +38,7 @@ pub fn output_folder(folder: &std::path::Path) -> anyhow::Result<()> {
     let shown = folder.display();
     std::fs::create_dir_all(folder)
         .with_context(|| format!("--out {shown}: cannot make the folder"))?;
-    let probe = folder.join(".tumble-write-check");
+    let probe = folder.join(format!(".tumble-write-check-{}", std::process::id()));
     std::fs::write(&probe, b"").with_context(|| format!("--out {shown}: cannot write there"))?;
     std::fs::remove_file(&probe).with_context(|| format!("--out {shown}: cannot write there"))
 }
