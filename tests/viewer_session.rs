@@ -460,6 +460,10 @@ fn the_panel_keeps_settings_beyond_its_sliders() {
         time_step: 0.08,
         friction: 2.0,
         max_iterations: 1_000_000,
+        tolerance: 0.0,
+        substeps: 64,
+        restitution_threshold: 10.0,
+        full_substeps_from: 0.1,
         ..Settings::accurate()
     };
     let mut s = session("two-chain", given.clone());
@@ -469,6 +473,14 @@ fn the_panel_keeps_settings_beyond_its_sliders() {
     assert_eq!(
         (kept.time_step, kept.friction, kept.max_iterations),
         (given.time_step, given.friction, given.max_iterations)
+    );
+    assert_eq!(
+        (kept.tolerance, kept.substeps),
+        (given.tolerance, given.substeps)
+    );
+    assert_eq!(
+        (kept.restitution_threshold, kept.full_substeps_from),
+        (given.restitution_threshold, given.full_substeps_from)
     );
 }
 

@@ -495,7 +495,11 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
     // The sliders clamp only what is dragged: a value from the command line beyond a slider's
     // range (`view --dt 0.08`, `--friction 2`) was clamped to it in the first frame, unsaid.
     let edits = egui::SliderClamping::Edits;
-    ui.add(egui::Slider::new(restitution, 0.0..=1.0).text("restitution"));
+    ui.add(
+        egui::Slider::new(restitution, 0.0..=1.0)
+            .clamping(edits)
+            .text("restitution"),
+    );
     ui.add(
         egui::Slider::new(friction, 0.0..=1.5)
             .clamping(edits)
@@ -520,17 +524,30 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
     );
     ui.add(
         egui::Slider::new(tolerance, 1e-6..=0.1)
+            .clamping(edits)
             .logarithmic(true)
             .text("tolerance"),
     );
-    ui.add(egui::Slider::new(substeps, 1..=32).text("substeps"));
-    ui.add(egui::Slider::new(full_substeps_from, 0.0..=0.05).text("all substeps from dt"))
-        .on_hover_text(
-            "A shorter step takes proportionally fewer substeps, down to half, so they stay \
+    ui.add(
+        egui::Slider::new(substeps, 1..=32)
+            .clamping(edits)
+            .text("substeps"),
+    );
+    ui.add(
+        egui::Slider::new(full_substeps_from, 0.0..=0.05)
+            .clamping(edits)
+            .text("all substeps from dt"),
+    )
+    .on_hover_text(
+        "A shorter step takes proportionally fewer substeps, down to half, so they stay \
              about as long as at this step (soft-step solver; 0: always all)",
-        );
-    ui.add(egui::Slider::new(restitution_threshold, 0.0..=5.0).text("restitution threshold"))
-        .on_hover_text("Contacts closing slower than this (units/s) bounce with e = 0 (0: off)");
+    );
+    ui.add(
+        egui::Slider::new(restitution_threshold, 0.0..=5.0)
+            .clamping(edits)
+            .text("restitution threshold"),
+    )
+    .on_hover_text("Contacts closing slower than this (units/s) bounce with e = 0 (0: off)");
     ui.horizontal(|ui| {
         ui.label("gravity");
         ui.add(egui::DragValue::new(&mut gravity.x).speed(0.1).prefix("x "));
