@@ -29,6 +29,8 @@ fn stepped(scene: &str, steps: usize) -> World {
 fn renderer_or_skip(world: &World, width: u32, height: u32) -> Option<OffscreenRenderer> {
     match OffscreenRenderer::new(world, width, height) {
         Ok(r) => Some(r),
+        // Only the want of an adapter skips; any other failure is the renderer's.
+        Err(e) if e.downcast_ref::<tumble::viewer::gpu::NoGpu>().is_none() => panic!("{e}"),
         Err(e) if std::env::var("TUMBLE_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
             panic!("TUMBLE_REQUIRE_GPU=1 but {e}")
         }

@@ -269,8 +269,8 @@ pub fn run(config: &AccuracyConfig, progress: &dyn Progress) -> anyhow::Result<A
     if let Some(dt) = config.dts.iter().find(|dt| !(dt.is_finite() && **dt > 0.0)) {
         anyhow::bail!("--dts: time steps must be positive numbers of seconds, got {dt}");
     }
-    // Long enough to take a step within the longest scenario, short enough to finish: --dts
-    // 1e-300 ran for ever, 1e9 took no step and reported an error of zero.
+    // Short enough to take steps within the shortest scenario (5 s), long enough to finish:
+    // --dts 1e9 took no step and reported an error of zero, 1e-300 ran for ever.
     if let Some(dt) = config
         .dts
         .iter()

@@ -39,7 +39,11 @@ pub fn output_folder(folder: &std::path::Path) -> anyhow::Result<()> {
     std::fs::create_dir_all(folder)
         .with_context(|| format!("--out {shown}: cannot make the folder"))?;
     let probe = folder.join(format!(".tumble-write-check-{}", std::process::id()));
-    std::fs::write(&probe, b"").with_context(|| format!("--out {shown}: cannot write there"))?;
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)
+        .with_context(|| format!("--out {shown}: cannot write there"))?;
     std::fs::remove_file(&probe).with_context(|| format!("--out {shown}: cannot write there"))
 }
 

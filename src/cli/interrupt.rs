@@ -1,6 +1,6 @@
-//! Ctrl-C and SIGTERM: the first one sets a flag so that runs and recordings finish what they
-//! have into valid files (a `timeout` that sent SIGTERM left `.NAME.partial` files behind); a
-//! second one terminates as usual.
+//! Ctrl-C, and SIGTERM where asked: the first one sets a flag so that runs and recordings finish
+//! what they have into valid files (a `timeout` that sent SIGTERM left `.NAME.partial` files
+//! behind); any second one terminates as usual.
 
 use std::sync::atomic::{AtomicI32, Ordering};
 
@@ -8,24 +8,30 @@ use std::sync::atomic::{AtomicI32, Ordering};
 static SIGNAL: AtomicI32 = AtomicI32::new(0);
 
 extern "C" fn on_signal(signal: libc::c_int) {
-    SIGNAL.store(signal, Ordering::SeqCst);
-    // Async-signal-safe: back to the default action for the next one.
+    // The first signal is the one the exit status reports.
+    let _ = SIGNAL.compare_exchange(0, signal, Ordering::SeqCst, Ordering::SeqCst);
+    // Async-signal-safe: back to the default action for the next one, of either kind.
     unsafe {
-        libc::signal(signal, libc::SIG_DFL);
+        libc::signal(libc::SIGINT, libc::SIG_DFL);
+        libc::signal(libc::SIGTERM, libc::SIG_DFL);
     }
 }
 
-/// Installs the handler of SIGINT and SIGTERM (Unix; a no-op elsewhere).
-pub fn install() {
+/// Installs the handler of SIGINT, and of SIGTERM with `term` (Unix; a no-op elsewhere). The
+/// window leaves SIGTERM alone: its event loop may sleep until the next input, and `kill`
+/// should end it at once.
+pub fn install(term: bool) {
     #[cfg(unix)]
     for signal in [libc::SIGINT, libc::SIGTERM] {
-        unsafe {
-            libc::signal(signal, on_signal as *const () as libc::sighandler_t);
+        if signal == libc::SIGINT || term {
+            unsafe {
+                libc::signal(signal, on_signal as *const () as libc::sighandler_t);
+            }
         }
     }
 }
 
-/// Whether Ctrl-C was pressed (or SIGTERM sent) since [`install`].
+/// Whether Ctrl-C was pressed (or SIGTERM sent, where caught) since [`install`].
 pub fn interrupted() -> bool {
     SIGNAL.load(Ordering::SeqCst) != 0
 }

@@ -85,7 +85,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         trajectory::write_header(out.writer())?;
         trajectory::write_rows(out.writer(), &world)?;
     }
-    super::interrupt::install();
+    super::interrupt::install(true);
     let start = Instant::now();
     let completed = simulate(args.steps, &mut world, &mut summary, trajectory.as_mut())?;
     summary.finish(&world, completed, start.elapsed().as_secs_f64());

@@ -228,7 +228,7 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
         fixed_bodies: !args.no_fixed,
         parse_settings: parse_compare,
     };
-    super::interrupt::install();
+    super::interrupt::install(false);
     tumble::viewer::run_viewer(world, options)
 }
 
@@ -243,7 +243,7 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     };
     // GIF delays are whole centiseconds, and players show those under 2 at 10 (browsers, most
     // viewers): above 50 fps the file plays slower than it was recorded.
-    if kind == OutputKind::Gif && args.fps > 50.0 {
+    if kind == OutputKind::Gif && args.fps > 50.0 && args.fps <= 1000.0 {
         eprintln!(
             "warning: --fps {}: most players show GIF frames shorter than 1/50 s at 1/10 s",
             args.fps
@@ -275,7 +275,7 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
         },
         compare,
     };
-    super::interrupt::install();
+    super::interrupt::install(true);
     let bar = super::progress_bar(
         ((args.seconds * args.fps).round() as u64).max(1),
         "recording",

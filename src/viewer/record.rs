@@ -428,6 +428,11 @@ const MAX_RECORD_STEPS: f64 = 1e8;
 impl RecordOptions {
     /// Rejects settings that cannot make a recording, with simulation time step `dt`.
     fn check(&self, dt: f64) -> anyhow::Result<()> {
+        anyhow::ensure!(
+            self.seconds.is_finite() && self.seconds >= 0.0,
+            "--seconds must be a non-negative number, got {}",
+            self.seconds
+        );
         for dt in std::iter::once(dt).chain(self.compare.as_ref().map(|s| s.time_step)) {
             anyhow::ensure!(
                 dt.is_finite() && dt > 0.0,
@@ -442,11 +447,6 @@ impl RecordOptions {
                 self.seconds
             );
         }
-        anyhow::ensure!(
-            self.seconds.is_finite() && self.seconds >= 0.0,
-            "--seconds must be a non-negative number, got {}",
-            self.seconds
-        );
         anyhow::ensure!(
             self.fps.is_finite() && self.fps > 0.0 && self.fps <= 1000.0,
             "--fps must lie in (0, 1000], got {}",

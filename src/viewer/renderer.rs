@@ -487,8 +487,11 @@ impl OffscreenRenderer {
         renderer.resize(&gpu.device, width, height);
         let target = Offscreen::new(&gpu.device, width, height, format);
         let invalid = pollster::block_on(invalid.pop());
-        if let Some(error) = pollster::block_on(memory.pop()).or(invalid) {
+        if let Some(error) = pollster::block_on(memory.pop()) {
             anyhow::bail!("frames of {width}x{height} do not fit the GPU's memory: {error}");
+        }
+        if let Some(error) = invalid {
+            anyhow::bail!("this GPU cannot make frames of {width}x{height}: {error}");
         }
         Ok(OffscreenRenderer {
             gpu,
