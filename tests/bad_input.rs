@@ -936,16 +936,8 @@ fn bench_options_out_of_range_are_named() {
     // whole run with "File exists (os error 17)").
     let file = std::env::temp_dir().join(format!("tumble-bench-file-{}", std::process::id()));
     std::fs::write(&file, "").unwrap();
-    let args = [
-        "bench",
-        "accuracy",
-        "--scenarios",
-        "free-fall",
-        "--dts",
-        "0.04",
-        "--out",
-    ];
-    let mut all: Vec<&std::ffi::OsStr> = args.iter().map(std::ffi::OsStr::new).collect();
+    let args = "bench accuracy --scenarios free-fall --dts 0.04 --out".split(' ');
+    let mut all: Vec<&std::ffi::OsStr> = args.map(std::ffi::OsStr::new).collect();
     all.push(file.as_os_str());
     cli_fails_saying(
         &all,

@@ -204,13 +204,13 @@ pub struct SceneArgs {
     pub constraints: Option<String>,
 }
 
-/// `x` with `decimals` places, or in scientific notation from a billion up (`--dt 1e300` printed
-/// three hundred digits).
-pub fn decimals(x: f64, decimals: usize) -> String {
+/// `x` with `places` decimal places, or in scientific notation from a billion up (`--dt 1e300`
+/// printed three hundred digits).
+pub fn decimals(x: f64, places: usize) -> String {
     if x.abs() >= 1e9 {
-        format!("{x:.decimals$e}")
+        format!("{x:.places$e}")
     } else {
-        format!("{x:.decimals$}")
+        format!("{x:.places$}")
     }
 }
 
