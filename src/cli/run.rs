@@ -72,7 +72,7 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let settings = args.settings.settings()?;
     let mut world = args.scene.load(settings.clone())?;
     if let Some(path) = &args.trajectory {
-        tumble::io::check_not_an_input(path, &world.inputs)?;
+        tumble::io::check_output(path, &world.inputs)?;
     }
     let mut summary = RunSummary::start(&args.scene.scene, args.steps, &world, settings);
     // Rows stream into a temporary file, renamed into place when the run ends (also on Ctrl-C).

@@ -208,8 +208,7 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
             "--screenshot {}: a screenshot is a PNG; name it .png",
             shot.display()
         );
-        tumble::io::check_output_path(shot)?;
-        tumble::io::check_not_an_input(shot, &world.inputs)?;
+        tumble::io::check_output(shot, &world.inputs)?;
     }
     let options = tumble::viewer::ViewOptions {
         scene: args.scene.scene.clone(),
@@ -236,11 +235,6 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
 pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     use tumble::viewer::{DrawOptions, OutputKind, RecordOptions};
     let kind = OutputKind::of(&args.output)?;
-    // A video file is written where a link leads; a folder of frames is the recorder's to check.
-    let output = match kind {
-        OutputKind::PngDir => args.output.clone(),
-        _ => tumble::io::check_output_path(&args.output)?,
-    };
     // GIF delays are whole centiseconds, and players show those under 2 at 10 (browsers, most
     // viewers): above 50 fps the file plays slower than it was recorded.
     if kind == OutputKind::Gif && args.fps > 50.0 && args.fps <= 1000.0 {
@@ -256,7 +250,11 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     });
     let compare = compare_settings(args.compare.as_deref())?;
     let world = args.scene.load(args.settings.settings()?)?;
-    tumble::io::check_not_an_input(&output, &world.inputs)?;
+    // A video file is written where a link leads; a folder of frames is the recorder's to check.
+    let output = match kind {
+        OutputKind::PngDir => args.output.clone(),
+        _ => tumble::io::check_output(&args.output, &world.inputs)?,
+    };
     let options = RecordOptions {
         output,
         seconds: args.seconds,

@@ -59,9 +59,15 @@ fn link_target(path: &Path) -> std::io::Result<PathBuf> {
     }
 }
 
-/// Refuses to write `output` over one of the files the run reads (`--trajectory scene.txt`
-/// replaced the scene it was simulating).
-pub fn check_not_an_input(output: &Path, inputs: &[PathBuf]) -> anyhow::Result<()> {
+/// [`check_output_path`], and the refusal of an output that is one of `inputs`, the files the run
+/// reads (`--trajectory scene.txt` replaced the scene it was simulating): the file to write.
+pub fn check_output(path: &Path, inputs: &[PathBuf]) -> anyhow::Result<PathBuf> {
+    let target = check_output_path(path)?;
+    check_not_an_input(&target, inputs)?;
+    Ok(target)
+}
+
+fn check_not_an_input(output: &Path, inputs: &[PathBuf]) -> anyhow::Result<()> {
     let Ok(written) = std::fs::canonicalize(output) else {
         return Ok(()); // Not there yet: no input.
     };

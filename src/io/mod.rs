@@ -14,7 +14,7 @@ pub mod trajectory;
 
 pub use crate::sim::shape::{TetMesh, TetVolumes};
 pub use atomic_file::{
-    AtomicFile, check_not_an_input, check_output_path, partial_path, write_file_atomically,
+    AtomicFile, check_output, check_output_path, partial_path, write_file_atomically,
 };
 pub use constraint_file::{ConstraintRecord, parse_constraints};
 pub use medit::{parse_medit, write_medit};
