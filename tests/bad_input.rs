@@ -509,6 +509,25 @@ fn off_surfaces_must_be_closed() {
 /// missing on one line shifts the records after it. Every coursework file holds one record a
 /// line: the first line that does not is named in the error, or in a warning when the shifted
 /// words still parse.
+/// A fixed body's density weighs nothing, so any value loads; a negative one is named on its
+/// line, as a sign typed by mistake, and zero (a coursework habit for fixed bodies) is not.
+#[test]
+fn a_fixed_bodys_negative_density_is_named() {
+    let dir = Dir::new("fixed-density");
+    dir.write("t.mesh", TET);
+    let scene = "2\nt.mesh 1 0 0 5 0 1 0 0 0\nt.mesh -3 1 0 0 0 1 0 0 0\n";
+    let world = load(&dir, scene, None).unwrap();
+    assert!(world.bodies[1].fixed);
+    assert_eq!(world.warnings.len(), 1, "{:?}", world.warnings);
+    let warning = &world.warnings[0];
+    assert!(
+        warning.contains("s-scene.txt:3:") && warning.contains("density -3 is negative"),
+        "{warning}"
+    );
+    let zero = load(&dir, &scene.replace("-3", "0"), None).unwrap();
+    assert!(zero.warnings.is_empty(), "{:?}", zero.warnings);
+}
+
 #[test]
 fn records_out_of_step_name_their_line() {
     let dir = Dir::new("layout");
@@ -742,6 +761,14 @@ fn cli_writes_no_output_over_an_input_a_pipe_or_a_link() {
         "{stderr}"
     );
     assert_eq!(std::fs::read_to_string(&constraints).unwrap(), "0\n");
+    // A hard link to the scene is the scene under another name.
+    let hard = dir.0.join("hard-link.txt");
+    std::fs::hard_link(&scene, &hard).unwrap();
+    fails_saying(&hard, &format!("it is {}", scene.display()));
+    assert_eq!(
+        std::fs::read(&hard).unwrap(),
+        std::fs::read(&scene).unwrap()
+    );
     let pipe = dir.0.join("pipe");
     let made = std::process::Command::new("mkfifo").arg(&pipe).status();
     if made.is_ok_and(|s| s.success()) {

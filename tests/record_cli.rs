@@ -305,6 +305,30 @@ fn record_png_frames() {
     assert!(again.status.success(), "{stderr}");
 }
 
+/// Recording frames into a folder replaces the `frame_*.png` there; not one the run reads (a
+/// scene saved under such a name). Refused before any rendering, so no GPU is needed.
+#[test]
+fn frames_never_replace_an_input() {
+    let dir = scratch("png-input");
+    let mesh = include_str!(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/assets/tetrahedron.mesh"
+    ));
+    std::fs::write(dir.join("t.mesh"), mesh).unwrap();
+    let scene = dir.join("frame_scene.png");
+    let text = "1\nt.mesh 1 0 0 3 0 1 0 0 0\n";
+    std::fs::write(&scene, text).unwrap();
+    fails_saying(
+        tumble()
+            .args(["record", "--seconds", "0.1", "--size", "80x60"])
+            .arg(&scene)
+            .arg("-o")
+            .arg(&dir),
+        &format!("it is {}, which this run reads", scene.display()),
+    );
+    assert_eq!(std::fs::read_to_string(&scene).unwrap(), text);
+}
+
 #[test]
 fn record_mp4_when_ffmpeg_is_installed() {
     if !tumble::viewer::record::ffmpeg_on_path() {

@@ -68,12 +68,12 @@ pub fn check_output(path: &Path, inputs: &[PathBuf]) -> anyhow::Result<PathBuf> 
 }
 
 fn check_not_an_input(output: &Path, inputs: &[PathBuf]) -> anyhow::Result<()> {
-    let Ok(written) = std::fs::canonicalize(output) else {
+    let Ok(written) = FileIdentity::of(output) else {
         return Ok(()); // Not there yet: no input.
     };
     match inputs
         .iter()
-        .find(|input| std::fs::canonicalize(input).is_ok_and(|read| read == written))
+        .find(|input| FileIdentity::of(input).is_ok_and(|read| read == written))
     {
         Some(input) => anyhow::bail!(
             "cannot write {}: it is {}, which this run reads",
@@ -81,6 +81,32 @@ fn check_not_an_input(output: &Path, inputs: &[PathBuf]) -> anyhow::Result<()> {
             input.display()
         ),
         None => Ok(()),
+    }
+}
+
+/// What makes two names one file: on Unix its device and inode, so that a hard link to an input
+/// is that input too (the rename into place would have split the two names silently, the output
+/// under one, the input as it was under the other); elsewhere its canonical path.
+#[derive(PartialEq)]
+enum FileIdentity {
+    #[cfg(unix)]
+    Inode(u64, u64),
+    #[cfg(not(unix))]
+    Path(PathBuf),
+}
+
+impl FileIdentity {
+    fn of(path: &Path) -> std::io::Result<Self> {
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::MetadataExt;
+            let meta = std::fs::metadata(path)?;
+            Ok(Self::Inode(meta.dev(), meta.ino()))
+        }
+        #[cfg(not(unix))]
+        {
+            std::fs::canonicalize(path).map(Self::Path)
+        }
     }
 }
 

@@ -44,6 +44,15 @@ pub(super) fn load_with(
                 shapes.len() - 1
             }
         };
+        if record.fixed && record.density < 0.0 {
+            // Not an error: a fixed body has no mass to weigh, but a sign typed by mistake
+            // should not pass unseen.
+            let unused = format!(
+                "the fixed body's density {} is negative; a fixed body's density is not used",
+                record.density
+            );
+            warnings.push(LoadError::new(path, Some(record.line), unused).to_string());
+        }
         let shape = &shapes[shape_index];
         let body = RigidBody::on_shape(
             shape,

@@ -57,6 +57,10 @@ pub fn scene_bounds(world: &World) -> (DVec3, DVec3) {
     (lo, hi)
 }
 
+/// Distances the camera may be at, zoomed or given: beyond them the depth range, in the `f32`
+/// the GPU takes, leaves nothing to draw (`--camera 0,20,1e300` recorded empty frames).
+pub const DISTANCE_RANGE: (f64, f64) = (1e-3, 1e7);
+
 impl OrbitCamera {
     /// Keeps the angles, points at the scene and backs off until it all fits.
     pub fn frame(&mut self, world: &World, aspect: f64) {
@@ -140,7 +144,8 @@ impl OrbitCamera {
 
     /// Zoom by `steps` wheel notches (positive = closer).
     pub fn zoom(&mut self, steps: f64) {
-        self.distance = (self.distance * 0.88f64.powf(steps)).clamp(1e-3, 1e7);
+        let (closest, farthest) = DISTANCE_RANGE;
+        self.distance = (self.distance * 0.88f64.powf(steps)).clamp(closest, farthest);
     }
 
     /// Parses `YAW,PITCH[,DISTANCE[,X,Y,Z]]` (degrees, scene units) over a framed camera.
@@ -158,8 +163,11 @@ impl OrbitCamera {
         self.yaw = values[0].to_radians();
         self.pitch = values[1].to_radians().clamp(-1.55, 1.55);
         if values.len() >= 3 {
-            if values[2] <= 0.0 {
-                return Err(format!("--camera '{spec}': the distance must be positive"));
+            let (closest, farthest) = DISTANCE_RANGE;
+            if !(closest..=farthest).contains(&values[2]) {
+                return Err(format!(
+                    "--camera '{spec}': the distance must be from {closest:e} to {farthest:e} scene units"
+                ));
             }
             self.distance = values[2];
         }
@@ -200,5 +208,32 @@ mod tests {
         assert!(cam.apply_spec("a,b").is_err());
         let nan = cam.apply_spec("NaN,25").unwrap_err();
         assert!(nan.contains("2, 3 or 6 finite numbers"), "{nan}");
+        let far = cam.apply_spec("0,20,1e300").unwrap_err();
+        assert!(far.contains("from 1e-3 to 1e7"), "{far}");
+    }
+
+    /// At either end of the distance range the GPU's `f32` matrix still puts the target inside
+    /// the depth range; past it (1e300) it does not.
+    #[test]
+    fn target_is_drawn_across_the_distance_range() {
+        let depth_of_target = |distance: f64| {
+            let cam = OrbitCamera {
+                target: DVec3::new(3.0, 1.0, -2.0),
+                distance,
+                scene_radius: 5.0,
+                ..Default::default()
+            };
+            let clip = cam.matrices(16.0 / 9.0).view_proj * cam.target.as_vec3().extend(1.0);
+            clip.z / clip.w
+        };
+        let (closest, farthest) = DISTANCE_RANGE;
+        for distance in [closest, 1.0, farthest] {
+            let depth = depth_of_target(distance);
+            assert!((0.0..=1.0).contains(&depth), "{distance}: {depth}");
+            let mut cam = OrbitCamera::default();
+            cam.apply_spec(&format!("0,20,{distance}")).unwrap();
+            assert_eq!(cam.distance, distance);
+        }
+        assert!(!(0.0..=1.0).contains(&depth_of_target(1e300)));
     }
 }

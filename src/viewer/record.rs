@@ -144,17 +144,38 @@ impl PngDirEncoder {
     fn create(path: &Path) -> anyhow::Result<PngDirEncoder> {
         std::fs::create_dir_all(path)
             .with_context(|| format!("cannot create directory {}", path.display()))?;
-        for entry in std::fs::read_dir(path)?.flatten() {
-            let name = entry.file_name().to_string_lossy().into_owned();
-            if name.starts_with("frame_") && name.ends_with(".png") {
-                let _ = std::fs::remove_file(entry.path());
-            }
+        for frame in earlier_frames(path) {
+            let _ = std::fs::remove_file(frame);
         }
         Ok(PngDirEncoder {
             dir: path.to_path_buf(),
             frames: 0,
         })
     }
+}
+
+/// The frames an earlier recording left in `folder` (`frame_*.png`), which a new one replaces.
+fn earlier_frames(folder: &Path) -> Vec<PathBuf> {
+    let Ok(entries) = std::fs::read_dir(folder) else {
+        return Vec::new(); // Not there yet.
+    };
+    entries
+        .flatten()
+        .filter(|entry| {
+            let name = entry.file_name().to_string_lossy().into_owned();
+            name.starts_with("frame_") && name.ends_with(".png")
+        })
+        .map(|entry| entry.path())
+        .collect()
+}
+
+/// Refuses to record frames into `folder` where one of the frames it would replace is one of
+/// `inputs`, the files the run reads (the check [`crate::io::check_output`] makes of a video).
+pub fn check_frames_folder(folder: &Path, inputs: &[PathBuf]) -> anyhow::Result<()> {
+    for frame in earlier_frames(folder) {
+        crate::io::check_output(&frame, inputs)?;
+    }
+    Ok(())
 }
 
 impl Encoder for PngDirEncoder {
