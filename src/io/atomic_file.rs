@@ -6,6 +6,7 @@ use anyhow::Context;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
 /// The temporary sibling a file is written under.
 pub fn partial_path(path: &Path) -> PathBuf {
@@ -110,13 +111,64 @@ impl FileIdentity {
     }
 }
 
+/// The partial files being written now, for [`remove_unfinished_files`].
+static UNFINISHED: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// A partial file being written: listed while it lives, and removed when dropped unless
+/// [`Unfinished::keep`] says it was moved into place. Where the process ends without unwinding
+/// (`std::process::exit` on a GPU out of memory), [`remove_unfinished_files`] removes the files
+/// of those still alive.
+pub struct Unfinished {
+    tmp: PathBuf,
+    kept: bool,
+}
+
+impl Unfinished {
+    pub fn new(tmp: &Path) -> Self {
+        let mut listed = UNFINISHED.lock().unwrap_or_else(|e| e.into_inner());
+        listed.push(tmp.to_path_buf());
+        Self {
+            tmp: tmp.to_path_buf(),
+            kept: false,
+        }
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.tmp
+    }
+
+    /// The file was moved into place: nothing to remove.
+    pub fn keep(mut self) {
+        self.kept = true;
+    }
+}
+
+impl Drop for Unfinished {
+    fn drop(&mut self) {
+        if !self.kept {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+        let mut listed = UNFINISHED.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(k) = listed.iter().position(|p| *p == self.tmp) {
+            listed.swap_remove(k);
+        }
+    }
+}
+
+/// Removes every partial file still being written: for an exit that skips destructors.
+pub fn remove_unfinished_files() {
+    let listed = UNFINISHED.lock().unwrap_or_else(|e| e.into_inner());
+    for tmp in listed.iter() {
+        let _ = std::fs::remove_file(tmp);
+    }
+}
+
 /// A file being written; [`AtomicFile::commit`] moves it to its final name. Dropped without a
 /// commit (an error on the way), it removes what it wrote.
 pub struct AtomicFile {
     path: PathBuf,
-    tmp: PathBuf,
     writer: BufWriter<File>,
-    committed: bool,
+    tmp: Unfinished,
 }
 
 impl AtomicFile {
@@ -134,9 +186,8 @@ impl AtomicFile {
         })?;
         Ok(Self {
             path: target,
-            tmp,
             writer: BufWriter::new(file),
-            committed: false,
+            tmp: Unfinished::new(&tmp),
         })
     }
 
@@ -149,23 +200,16 @@ impl AtomicFile {
         self.writer
             .flush()
             .with_context(|| format!("cannot write {}", self.path.display()))?;
-        std::fs::rename(&self.tmp, &self.path).with_context(|| {
+        let tmp = self.tmp.path();
+        std::fs::rename(tmp, &self.path).with_context(|| {
             format!(
                 "cannot write {} (moving {} into place)",
                 self.path.display(),
-                self.tmp.display()
+                tmp.display()
             )
         })?;
-        self.committed = true;
+        self.tmp.keep();
         Ok(())
-    }
-}
-
-impl Drop for AtomicFile {
-    fn drop(&mut self) {
-        if !self.committed {
-            let _ = std::fs::remove_file(&self.tmp);
-        }
     }
 }
 
@@ -190,9 +234,15 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("tumble-atomic-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let (kept, dropped) = (dir.join("kept.txt"), dir.join("dropped.txt"));
+        let listed = |path: &Path| {
+            let tmp = partial_path(path);
+            UNFINISHED.lock().unwrap().contains(&tmp)
+        };
         let mut file = AtomicFile::create(&kept).unwrap();
         file.writer().write_all(b"whole").unwrap();
+        assert!(listed(&kept), "listed for an exit that skips destructors");
         file.commit().unwrap();
+        assert!(!listed(&kept));
         let mut file = AtomicFile::create(&dropped).unwrap();
         file.writer().write_all(b"half").unwrap();
         assert!(partial_path(&dropped).exists());

@@ -379,9 +379,19 @@ impl App {
             rect: self.view_rect,
         };
         if let Err(e) = recording.capture_due(gfx, &self.session.lanes, view) {
-            self.panel.message = Some(format!("recording failed: {e:#}"));
-            self.recording = None;
+            self.recording_failed(e);
         }
+    }
+
+    /// Ends the recording on a frame it could not take. The frames before it are a whole
+    /// recording: closed and kept, as when stopped (dropped, the file would be abandoned).
+    fn recording_failed(&mut self, error: anyhow::Error) {
+        let kept = match self.recording.take().map(Recording::finish) {
+            Some(Ok((path, frames))) => format!("; {} holds its {frames} frames", path.display()),
+            Some(Err(e)) => format!("; and closing it: {e:#}"),
+            None => String::new(),
+        };
+        self.panel.message = Some(format!("recording stopped: {error:#}{kept}"));
     }
 
     fn redraw(&mut self, event_loop: &ActiveEventLoop) -> anyhow::Result<()> {
@@ -483,8 +493,7 @@ impl App {
             }
         });
         if let Some(e) = failure {
-            self.panel.message = Some(format!("recording failed: {e:#}"));
-            self.recording = None;
+            self.recording_failed(e);
         }
     }
 

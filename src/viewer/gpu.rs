@@ -69,6 +69,8 @@ impl Gpu {
                 eprintln!(
                     "error: the GPU ran out of memory ({error}); a smaller --size needs less"
                 );
+                // The exit skips destructors: a recording's partial file is removed here.
+                crate::io::atomic_file::remove_unfinished_files();
                 std::process::exit(1);
             }
             other => panic!("wgpu error: {other}"),

@@ -6,6 +6,7 @@ use super::compare;
 use super::gpu::Image;
 use super::labels::Label;
 use super::renderer::{DrawOptions, OffscreenRenderer};
+use crate::io::atomic_file::Unfinished;
 pub use crate::io::{partial_path, write_file_atomically};
 use crate::{Settings, StepStats, World};
 use anyhow::{Context, bail};
@@ -59,7 +60,7 @@ trait Encoder: Send {
 struct GifEncoder {
     encoder: gif::Encoder<std::io::BufWriter<std::fs::File>>,
     path: PathBuf,
-    tmp: PathBuf,
+    tmp: Unfinished,
     fps: f64,
     frames: u64,
     centiseconds: u64,
@@ -76,13 +77,14 @@ impl GifEncoder {
                 tmp.display()
             )
         })?;
+        let tmp = Unfinished::new(&tmp);
         let mut encoder = gif::Encoder::new(
             std::io::BufWriter::new(file),
             width as u16,
             height as u16,
             &[],
         )
-        .with_context(|| format!("cannot write {}", tmp.display()))?;
+        .with_context(|| format!("cannot write {}", tmp.path().display()))?;
         encoder.set_repeat(gif::Repeat::Infinite)?;
         Ok(GifEncoder {
             encoder,
@@ -111,25 +113,18 @@ impl Encoder for GifEncoder {
         self.centiseconds = end;
         self.encoder
             .write_frame(&frame)
-            .with_context(|| format!("cannot write {}", self.tmp.display()))
+            .with_context(|| format!("cannot write {}", self.tmp.path().display()))
     }
 
     fn finish(self: Box<Self>) -> anyhow::Result<()> {
-        let mut writer = self
-            .encoder
-            .into_inner()
-            .with_context(|| format!("cannot write {}", self.tmp.display()))?;
-        writer
-            .flush()
-            .with_context(|| format!("cannot write {}", self.tmp.display()))?;
+        let GifEncoder {
+            encoder, path, tmp, ..
+        } = *self;
+        let written = || format!("cannot write {}", tmp.path().display());
+        let mut writer = encoder.into_inner().with_context(written)?;
+        writer.flush().with_context(written)?;
         drop(writer);
-        std::fs::rename(&self.tmp, &self.path).with_context(|| {
-            format!(
-                "cannot move {} to {}",
-                self.tmp.display(),
-                self.path.display()
-            )
-        })
+        move_into_place(tmp, &path)
     }
 }
 
@@ -194,7 +189,8 @@ struct Mp4Encoder {
     child: std::process::Child,
     stdin: Option<std::process::ChildStdin>,
     path: PathBuf,
-    tmp: PathBuf,
+    /// Removed, when dropped unfinished, after ffmpeg has stopped writing it.
+    tmp: Option<Unfinished>,
 }
 
 impl Mp4Encoder {
@@ -245,7 +241,7 @@ impl Mp4Encoder {
             child,
             stdin,
             path: path.to_path_buf(),
-            tmp,
+            tmp: Some(Unfinished::new(&tmp)),
         })
     }
 }
@@ -262,17 +258,21 @@ impl Encoder for Mp4Encoder {
         drop(self.stdin.take());
         let status = self.child.wait().context("cannot wait for ffmpeg")?;
         if !status.success() {
-            let _ = std::fs::remove_file(&self.tmp);
             bail!("ffmpeg failed ({status}) writing {}", self.path.display());
         }
-        std::fs::rename(&self.tmp, &self.path).with_context(|| {
-            format!(
-                "cannot move {} to {}",
-                self.tmp.display(),
-                self.path.display()
-            )
-        })
+        match self.tmp.take() {
+            Some(tmp) => move_into_place(tmp, &self.path),
+            None => Ok(()),
+        }
     }
+}
+
+/// Renames a finished partial file to `path`.
+fn move_into_place(tmp: Unfinished, path: &Path) -> anyhow::Result<()> {
+    std::fs::rename(tmp.path(), path)
+        .with_context(|| format!("cannot move {} to {}", tmp.path().display(), path.display()))?;
+    tmp.keep();
+    Ok(())
 }
 
 impl Drop for Mp4Encoder {
@@ -290,7 +290,7 @@ pub struct FrameWriter {
     pub kind: OutputKind,
     pub width: u32,
     pub height: u32,
-    sender: Option<SyncSender<Image>>,
+    sender: Option<SyncSender<Queued>>,
     thread: Option<JoinHandle<anyhow::Result<f64>>>,
     /// Seconds the encoder thread spent encoding, known after [`Self::finish`].
     pub encode_s: f64,
@@ -353,7 +353,7 @@ impl FrameWriter {
             OutputKind::PngDir => Box::new(PngDirEncoder::create(path)?),
             OutputKind::Mp4 => Box::new(Mp4Encoder::spawn(path, width, height, fps)?),
         };
-        let (sender, receiver) = sync_channel::<Image>(4);
+        let (sender, receiver) = sync_channel::<Queued>(4);
         let thread = std::thread::Builder::new()
             .name("tumble-encoder".into())
             .spawn(move || encode(encoder, receiver))?;
@@ -375,7 +375,10 @@ impl FrameWriter {
             image.width == self.width && image.height == self.height,
             "frame size changed during the recording"
         );
-        let sent = self.sender.as_ref().is_some_and(|s| s.send(image).is_ok());
+        let sent = self
+            .sender
+            .as_ref()
+            .is_some_and(|s| s.send(Queued::Frame(image)).is_ok());
         if !sent {
             // The encoder thread stopped: report why.
             return Err(self
@@ -400,27 +403,43 @@ impl FrameWriter {
     /// Encodes the queued frames and closes the file. Returns the number of frames written and
     /// the seconds the encoder thread spent encoding them.
     pub fn finish(mut self) -> anyhow::Result<(u64, f64)> {
+        if let Some(sender) = &self.sender {
+            // A send fails only where the encoder stopped on an error, which the join reports.
+            let _ = sender.send(Queued::Finish);
+        }
         self.join()?;
         Ok((self.frames, self.encode_s))
     }
 }
 
+/// Dropped without [`FrameWriter::finish`] (an error on the way), the recording is abandoned: a
+/// video's partial file is removed rather than moved into place as if complete.
 impl Drop for FrameWriter {
     fn drop(&mut self) {
         let _ = self.join();
     }
 }
 
-fn encode(mut encoder: Box<dyn Encoder>, frames: Receiver<Image>) -> anyhow::Result<f64> {
+/// What the encoder thread is sent: a frame, or the word to close the file.
+enum Queued {
+    Frame(Image),
+    Finish,
+}
+
+fn encode(mut encoder: Box<dyn Encoder>, queue: Receiver<Queued>) -> anyhow::Result<f64> {
     let mut busy = 0.0;
-    for mut image in frames {
+    for queued in queue {
         let start = Instant::now();
-        encoder.frame(&mut image)?;
+        match queued {
+            Queued::Frame(mut image) => encoder.frame(&mut image)?,
+            Queued::Finish => {
+                encoder.finish()?;
+                return Ok(busy + start.elapsed().as_secs_f64());
+            }
+        }
         busy += start.elapsed().as_secs_f64();
     }
-    let start = Instant::now();
-    encoder.finish()?;
-    Ok(busy + start.elapsed().as_secs_f64())
+    Ok(busy) // Abandoned: the encoder's partial file goes with it.
 }
 
 /// Settings of an offscreen recording.
@@ -652,5 +671,35 @@ mod tests {
             OutputKind::PngDir
         );
         assert!(OutputKind::of(Path::new("a.avi")).is_err());
+    }
+
+    /// A recording finished is in place and nothing else; one dropped unfinished (an error on
+    /// the way) leaves neither the video nor its partial file, where it used to be moved into
+    /// place as if complete.
+    #[test]
+    fn an_abandoned_recording_leaves_no_file() {
+        let dir = std::env::temp_dir().join(format!("tumble-frames-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let frame = || Image {
+            width: 4,
+            height: 2,
+            rgba: vec![200; 32],
+        };
+        let (finished, abandoned) = (dir.join("finished.gif"), dir.join("abandoned.gif"));
+        let mut writer = FrameWriter::create(&finished, 4, 2, 10.0).unwrap();
+        writer.push(frame()).unwrap();
+        assert_eq!(writer.finish().unwrap().0, 1);
+        let mut writer = FrameWriter::create(&abandoned, 4, 2, 10.0).unwrap();
+        writer.push(frame()).unwrap();
+        writer.push(frame()).unwrap();
+        drop(writer);
+        let mut names: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        let _ = std::fs::remove_dir_all(&dir);
+        assert_eq!(names, ["finished.gif"]);
     }
 }
