@@ -185,7 +185,9 @@ fn bench_accuracy_json_beside_the_csv_matches_it() {
                 "--dts",
                 "0.04",
             ])
-            .args(["--combinations", "coursework,accurate", "--out"])
+            // Named time steps and combinations are run as named, --quick or not (it ran
+            // dt 0.01 too).
+            .args(["--quick", "--combinations", "coursework,accurate", "--out"])
             .arg(&dir),
     );
     let json: serde_json::Value =
@@ -207,4 +209,68 @@ fn bench_accuracy_json_beside_the_csv_matches_it() {
     }
     assert_eq!(rows, 2, "one metric per combination:\n{csv}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `bench scale --quick` shortens what is not given; sizes and steps given are run as given.
+#[test]
+fn bench_scale_quick_keeps_what_is_named() {
+    let dir = std::env::temp_dir().join(format!("tumble-scale-quick-{}", std::process::id()));
+    let out = succeeded(
+        tumble()
+            .args([
+                "bench", "scale", "--quick", "--scenes", "pile", "--sizes", "20",
+            ])
+            .args([
+                "--variants",
+                "tumble_1_thread",
+                "--steps",
+                "3",
+                "--json",
+                "--out",
+            ])
+            .arg(&dir),
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let scenes: Vec<&String> = v["results"].as_object().unwrap().keys().collect();
+    assert_eq!(scenes, ["pile-20"]);
+    assert_eq!(v["steps"], 3);
+}
+
+/// `--gravity` pulls every body the way it says: the cube scene's eight octahedra, held
+/// rigidly together, fall sideways as one, by semi-implicit Euler's `g dt^2 n (n + 1) / 2`
+/// after n steps, and not at all along y.
+#[test]
+fn gravity_is_a_flag() {
+    let dir = std::env::temp_dir().join(format!("tumble-gravity-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("sideways.csv");
+    succeeded(
+        tumble()
+            .args([
+                "run",
+                "cube",
+                "--steps",
+                "10",
+                "--dt",
+                "0.02",
+                "--gravity",
+                "3,0,0",
+            ])
+            .arg("--trajectory")
+            .arg(&path),
+    );
+    let rows = std::fs::read_to_string(&path).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    let field = |row: &str, k: usize| row.split(',').nth(k).unwrap().parse::<f64>().unwrap();
+    let rows: Vec<&str> = rows.lines().skip(1).collect();
+    let (first, last) = (&rows[..8], &rows[rows.len() - 8..]);
+    let expected = 3.0 * 0.02 * 0.02 * 10.0 * 11.0 / 2.0;
+    for (a, b) in first.iter().zip(last) {
+        assert!(
+            (field(b, 3) - field(a, 3) - expected).abs() < 1e-12,
+            "{a} -> {b}"
+        );
+        assert_eq!(field(b, 4), field(a, 4), "{a} -> {b}");
+    }
 }

@@ -15,10 +15,12 @@ use std::path::{Path, PathBuf};
 pub struct AccuracyConfig {
     /// Scenarios to run (empty: all).
     pub scenarios: Vec<Scenario>,
+    /// Time steps to sweep (empty: [`DTS`], or [`QUICK_DTS`] with `quick`).
     pub dts: Vec<f64>,
     /// Setting combinations to run (empty: all, or the reduced set with `quick`).
     pub combinations: Vec<String>,
-    /// Reduced sweep for smoke tests (two time steps, fewer combinations).
+    /// Reduced sweep for smoke tests: two time steps and fewer combinations, where the time
+    /// steps or the combinations are not named.
     pub quick: bool,
     /// Folder for the CSV and the plots.
     pub out: PathBuf,
@@ -62,6 +64,10 @@ pub fn combinations() -> Vec<(&'static str, Settings)> {
         ("accurate", Settings::accurate()),
     ]
 }
+
+/// The time steps swept by default, and by the reduced (`--quick`) sweep.
+pub const DTS: [f64; 5] = [0.04, 0.02, 0.01, 0.005, 0.0025];
+pub const QUICK_DTS: [f64; 2] = [0.04, 0.01];
 
 /// The combinations of the reduced (`--quick`) sweep.
 const QUICK_COMBINATIONS: [&str; 4] = ["coursework", "coursework_tuned", "accurate", "rapier"];
@@ -144,14 +150,17 @@ fn jobs(config: &AccuracyConfig) -> (Vec<Job>, Vec<f64>) {
     } else {
         config.scenarios.clone()
     };
-    let mut dts = config.dts.clone();
+    // What is named is run as named, `quick` or not (`--quick --dts 0.04` ran dt 0.01 too).
+    let dts = match (config.dts.is_empty(), config.quick) {
+        (false, _) => config.dts.clone(),
+        (true, false) => DTS.to_vec(),
+        (true, true) => QUICK_DTS.to_vec(),
+    };
     let mut combos = engines();
-    if config.quick {
-        dts = vec![0.04, 0.01];
-        combos.retain(|(name, ..)| QUICK_COMBINATIONS.contains(name));
-    }
     if !config.combinations.is_empty() {
         combos.retain(|(name, ..)| config.combinations.iter().any(|c| c == name));
+    } else if config.quick {
+        combos.retain(|(name, ..)| QUICK_COMBINATIONS.contains(name));
     }
     let mut jobs = Vec::new();
     for &scenario in &scenarios {

@@ -32,26 +32,35 @@ pub struct ScaleConfig {
     pub warmup: usize,
     /// Wall-clock cap per run in seconds: slow variants measure fewer steps.
     pub max_seconds: f64,
-    /// Short smoke run (sizes 100 and 1000, 20 steps).
-    pub quick: bool,
     /// Folder for the CSV and the plots.
     pub out: PathBuf,
 }
 
 impl ScaleConfig {
-    /// The configuration actually run: `quick` shrinks sizes, steps and time caps.
-    fn effective(&self) -> ScaleConfig {
-        let mut c = self.clone();
-        if c.quick {
-            c.sizes = vec![100, 1000];
-            c.scatter_sizes = vec![1000];
-            c.steps = c.steps.min(20);
-            c.warmup = c.warmup.min(3);
-            c.max_seconds = c.max_seconds.min(5.0);
+    /// The default run, or with `quick` the short smoke run (sizes 100 and 1000, scatter-1000,
+    /// 20 steps after 3 of warm-up, 5 s a run at most): every scene family and variant.
+    pub fn defaults(quick: bool) -> ScaleConfig {
+        let (sizes, scatter_sizes) = match quick {
+            false => (vec![100, 1000, 10000], vec![1000, 10000, 100000]),
+            true => (vec![100, 1000], vec![1000]),
+        };
+        let (steps, warmup, max_seconds) = if quick { (20, 3, 5.0) } else { (500, 20, 30.0) };
+        ScaleConfig {
+            scenes: FAMILIES.iter().map(|f| f.to_string()).collect(),
+            sizes,
+            scatter_sizes,
+            huge: false,
+            variants: Variant::ALL.to_vec(),
+            steps,
+            warmup,
+            max_seconds,
+            out: PathBuf::from("bench-out"),
         }
-        c
     }
 }
+
+/// The scene families `bench scale` runs.
+pub const FAMILIES: [&str; 4] = ["sparse", "pile", "chain", "scatter"];
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -450,7 +459,6 @@ fn jobs(config: &ScaleConfig) -> (Vec<(String, usize, Variant)>, Vec<String>) {
 
 /// Measures every job, then writes `scale.csv` and one plot per scene family.
 pub fn run(config: &ScaleConfig, progress: &dyn Progress) -> anyhow::Result<ScaleReport> {
-    let config = &config.effective();
     super::output_folder(&config.out)?;
     let (jobs, left_out) = jobs(config);
     progress.start(jobs.len() as u64, "bench scale");

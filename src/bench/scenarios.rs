@@ -16,21 +16,29 @@ use std::time::Instant;
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "snake_case")]
 pub enum Scenario {
+    #[cfg_attr(feature = "cli", value(alias = "free_fall"))]
     FreeFall,
+    #[cfg_attr(feature = "cli", value(alias = "spin_ellipsoid"))]
     SpinEllipsoid,
+    #[cfg_attr(feature = "cli", value(alias = "spin_long_octahedron"))]
     SpinLongOctahedron,
     Bounce,
     Pendulum,
     /// A box hung by a corner on a rigid rod: it turns as it swings. Its energy should stay.
+    #[cfg_attr(feature = "cli", value(alias = "corner_pendulum"))]
     CornerPendulum,
     Tower,
     Chains,
+    #[cfg_attr(feature = "cli", value(alias = "mixed_energy"))]
     MixedEnergy,
     /// A box on a 20 degree incline with mu = 0.5: static friction holds it.
+    #[cfg_attr(feature = "cli", value(alias = "slope_20"))]
     Slope20,
     /// The same at 30 degrees: it slides with acceleration g (sin a - mu cos a).
+    #[cfg_attr(feature = "cli", value(alias = "slope_30"))]
     Slope30,
     /// pile-200 with friction, dropped: it should come to rest without sinking in.
+    #[cfg_attr(feature = "cli", value(alias = "pile_rest"))]
     PileRest,
 }
 
@@ -787,6 +795,18 @@ fn pile_rest(run: &Run) -> Measured {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `--scenarios` takes the names the results print (`corner_pendulum`) as well as its own
+    /// (`corner-pendulum`).
+    #[cfg(feature = "cli")]
+    #[test]
+    fn scenarios_parse_under_their_printed_names() {
+        use clap::ValueEnum;
+        for scenario in Scenario::ALL {
+            assert_eq!(Scenario::from_str(scenario.name(), false), Ok(scenario));
+        }
+        assert_eq!(Scenario::from_str("slope20", false), Ok(Scenario::Slope20));
+    }
 
     #[test]
     fn flip_time_is_where_the_samples_cross_zero() {

@@ -8,21 +8,21 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use tumble::Settings;
 use tumble::bench::accuracy::{AccuracyConfig, AccuracyReport, primary_metric_of};
-use tumble::bench::scale::{ScaleConfig, ScaleReport, Variant};
+use tumble::bench::scale::{FAMILIES, ScaleConfig, ScaleReport, Variant};
 use tumble::bench::scenarios::Scenario;
 use tumble::bench::soak::SoakResult;
 
 #[derive(Debug, Args)]
 pub struct ScaleArgs {
     /// Scene families to run: sparse (the coursework's comparison: more bodies in the same
-    /// square), pile, chain, scatter (constant density: the area grows with N).
-    #[arg(long, num_args = 1.., value_delimiter = ',', default_values_t = ["sparse".to_string(), "pile".to_string(), "chain".to_string(), "scatter".to_string()])]
+    /// square), pile, chain, scatter (constant density: the area grows with N) [default: all].
+    #[arg(long, num_args = 1.., value_delimiter = ',')]
     pub scenes: Vec<String>,
-    /// Body counts of sparse, pile and chain.
-    #[arg(long, num_args = 1.., value_delimiter = ',', default_values_t = [100usize, 1000, 10000])]
+    /// Body counts of sparse, pile and chain [default: 100 1000 10000; 100 1000 with --quick].
+    #[arg(long, num_args = 1.., value_delimiter = ',')]
     pub sizes: Vec<usize>,
-    /// Body counts of scatter.
-    #[arg(long, num_args = 1.., value_delimiter = ',', default_values_t = [1000usize, 10000, 100000])]
+    /// Body counts of scatter [default: 1000 10000 100000; 1000 with --quick].
+    #[arg(long, num_args = 1.., value_delimiter = ',')]
     pub scatter_sizes: Vec<usize>,
     /// Variants to run (default: all): coursework, tumble_1_thread, tumble_all_cores,
     /// accurate_1_thread, accurate_all_cores, rapier, rapier_accurate (the last two need
@@ -33,17 +33,18 @@ pub struct ScaleArgs {
     #[arg(long)]
     pub huge: bool,
     /// Measured steps per run (after the warm-up); pile-N is watched on for three times as
-    /// many, for its pile to come to rest (its median still covers the first ones).
-    #[arg(long, default_value_t = 500, allow_negative_numbers = true, value_parser = super::whole_number::<usize>)]
-    pub steps: usize,
-    /// Warm-up steps per run.
-    #[arg(long, default_value_t = 20)]
-    pub warmup: usize,
+    /// many, for its pile to come to rest (its median still covers the first ones) [default:
+    /// 500; 20 with --quick].
+    #[arg(long, allow_negative_numbers = true, value_parser = super::whole_number::<usize>)]
+    pub steps: Option<usize>,
+    /// Warm-up steps per run [default: 20; 3 with --quick].
+    #[arg(long)]
+    pub warmup: Option<usize>,
     /// Wall-clock cap per run in seconds (pile-N: three times it): slow variants measure fewer
-    /// steps.
-    #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
-    pub max_seconds: f64,
-    /// Short smoke run (sizes 100 and 1000, 20 steps).
+    /// steps [default: 30; 5 with --quick].
+    #[arg(long, allow_negative_numbers = true)]
+    pub max_seconds: Option<f64>,
+    /// Short smoke run: the sizes, steps and time cap in brackets above, where not given.
     #[arg(long)]
     pub quick: bool,
     /// Print one JSON object instead of the table.
@@ -59,15 +60,16 @@ pub struct AccuracyArgs {
     /// Scenarios to run (default: all).
     #[arg(long, value_enum, num_args = 1.., value_delimiter = ',')]
     pub scenarios: Vec<Scenario>,
-    /// Time steps to sweep.
-    #[arg(long, num_args = 1.., value_delimiter = ',', allow_negative_numbers = true, default_values_t = [0.04, 0.02, 0.01, 0.005, 0.0025])]
+    /// Time steps to sweep [default: 0.04 0.02 0.01 0.005 0.0025; 0.04 0.01 with --quick].
+    #[arg(long, num_args = 1.., value_delimiter = ',', allow_negative_numbers = true)]
     pub dts: Vec<f64>,
     /// Setting combinations to run (default: all): coursework, gyroscopic, angular_momentum,
     /// skip_separating, restitution_threshold, contact_patches, substeps_4, iterations_100,
     /// sparse_schedule, coursework_tuned, accurate, and rapier (built with compare-rapier).
     #[arg(long, num_args = 1.., value_delimiter = ',')]
     pub combinations: Vec<String>,
-    /// Reduced sweep for smoke tests (two time steps, fewer combinations).
+    /// Reduced sweep for smoke tests: two time steps and the coursework, coursework_tuned,
+    /// accurate and rapier combinations, where --dts or --combinations do not name others.
     #[arg(long)]
     pub quick: bool,
     /// Print one JSON object instead of the table.
@@ -102,11 +104,18 @@ fn parse_variant(name: &str) -> Result<Variant, String> {
 const MAX_SCALE_STEPS: usize = 1_000_000;
 
 /// Sizes a generated scene can have, at least one measured step, and a positive time cap.
-fn check_scale_args(args: &ScaleArgs) -> anyhow::Result<()> {
+fn check_scale_config(config: &ScaleConfig) -> anyhow::Result<()> {
     use tumble::scene::MAX_GENERATED;
+    if let Some(scene) = config
+        .scenes
+        .iter()
+        .find(|s| !FAMILIES.contains(&s.as_str()))
+    {
+        anyhow::bail!("unknown scene family '{scene}' ({})", FAMILIES.join(", "));
+    }
     for (flag, sizes) in [
-        ("--sizes", &args.sizes),
-        ("--scatter-sizes", &args.scatter_sizes),
+        ("--sizes", &config.sizes),
+        ("--scatter-sizes", &config.scatter_sizes),
     ] {
         if let Some(n) = sizes.iter().find(|n| !(1..=MAX_GENERATED).contains(*n)) {
             anyhow::bail!(
@@ -114,32 +123,52 @@ fn check_scale_args(args: &ScaleArgs) -> anyhow::Result<()> {
             );
         }
     }
-    if args.steps == 0 {
+    if config.steps == 0 {
         anyhow::bail!("--steps must be at least 1");
     }
     // Each measured step's time is kept: 2^64 steps asked for that many at once and panicked.
-    if args.steps > MAX_SCALE_STEPS {
+    if config.steps > MAX_SCALE_STEPS {
         anyhow::bail!(
             "--steps must be at most {MAX_SCALE_STEPS}, got {}",
-            args.steps
+            config.steps
         );
     }
-    if !(args.max_seconds > 0.0 && args.max_seconds.is_finite()) {
+    if !(config.max_seconds > 0.0 && config.max_seconds.is_finite()) {
         anyhow::bail!(
             "--max-seconds must be a positive number of seconds, got {}",
-            args.max_seconds
+            config.max_seconds
         );
     }
     Ok(())
 }
 
-pub fn scale(args: &ScaleArgs) -> anyhow::Result<()> {
-    for scene in &args.scenes {
-        if !["sparse", "pile", "chain", "scatter"].contains(&scene.as_str()) {
-            anyhow::bail!("unknown scene family '{scene}' (sparse, pile, chain, scatter)");
+/// The run asked for: what is given, and for the rest the defaults (or `--quick`'s).
+fn scale_config(args: &ScaleArgs) -> ScaleConfig {
+    let mut config = ScaleConfig::defaults(args.quick);
+    let given = |list: &Vec<usize>, default: &mut Vec<usize>| {
+        if !list.is_empty() {
+            *default = list.clone();
         }
+    };
+    given(&args.sizes, &mut config.sizes);
+    given(&args.scatter_sizes, &mut config.scatter_sizes);
+    if !args.scenes.is_empty() {
+        config.scenes = args.scenes.clone();
     }
-    check_scale_args(args)?;
+    if !args.variants.is_empty() {
+        config.variants = args.variants.clone();
+    }
+    config.steps = args.steps.unwrap_or(config.steps);
+    config.warmup = args.warmup.unwrap_or(config.warmup);
+    config.max_seconds = args.max_seconds.unwrap_or(config.max_seconds);
+    config.huge = args.huge;
+    config.out = args.out.clone();
+    config
+}
+
+pub fn scale(args: &ScaleArgs) -> anyhow::Result<()> {
+    let config = scale_config(args);
+    check_scale_config(&config)?;
     // Asked for by name, as `bench accuracy --combinations rapier` is refused: not an empty
     // table and a zero exit.
     if let Some(v) = args.variants.iter().find(|v| v.is_rapier())
@@ -150,22 +179,6 @@ pub fn scale(args: &ScaleArgs) -> anyhow::Result<()> {
             v.name()
         );
     }
-    let variants = match args.variants.is_empty() {
-        true => Variant::ALL.to_vec(),
-        false => args.variants.clone(),
-    };
-    let config = ScaleConfig {
-        scenes: args.scenes.clone(),
-        sizes: args.sizes.clone(),
-        scatter_sizes: args.scatter_sizes.clone(),
-        variants,
-        huge: args.huge,
-        steps: args.steps,
-        warmup: args.warmup,
-        max_seconds: args.max_seconds,
-        quick: args.quick,
-        out: args.out.clone(),
-    };
     let report = tumble::bench::scale::run(&config, &ProgressBar::default())?;
     print_or_table(args.json, &report, &report.csv, || {
         println!("machine: {}", report.machine.describe());

@@ -6,6 +6,7 @@ pub mod run;
 pub mod view;
 
 use clap::Args;
+use glam::DVec3;
 use std::path::PathBuf;
 use tumble::sim::settings::{BroadPhase, ConstraintSchedule, RotationIntegrator, Solver};
 use tumble::{ConstraintsChoice, Settings};
@@ -33,6 +34,9 @@ pub struct SettingsArgs {
     /// ceil(K / M) constraint visits [default: 10000].
     #[arg(long, value_name = "K")]
     pub max_iterations: Option<usize>,
+    /// Gravity, X,Y,Z in units/s^2 (the ground is y = 0) [default: 0,-9.8,0].
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = parse_vector)]
+    pub gravity: Option<DVec3>,
     /// Constraint tolerance [default: 0.001].
     #[arg(long, value_name = "T", allow_negative_numbers = true)]
     pub tolerance: Option<f64>,
@@ -70,6 +74,17 @@ pub struct SettingsArgs {
     /// Constraint schedule [default: sweep].
     #[arg(long, value_enum)]
     pub constraint_schedule: Option<ConstraintSchedule>,
+}
+
+/// `X,Y,Z` as a vector of three finite numbers.
+fn parse_vector(text: &str) -> Result<DVec3, String> {
+    let numbers: Result<Vec<f64>, _> = text.split(',').map(|v| v.trim().parse::<f64>()).collect();
+    match numbers.as_deref() {
+        Ok(&[x, y, z]) if [x, y, z].iter().all(|v| v.is_finite()) => Ok(DVec3::new(x, y, z)),
+        _ => Err(format!(
+            "expected three finite numbers X,Y,Z (e.g. 0,-9.8,0), got '{text}'"
+        )),
+    }
 }
 
 /// Longest time step taken without a warning. The mixed scene's deepest penetration after 4 s
@@ -110,6 +125,9 @@ impl SettingsArgs {
         }
         if let Some(v) = self.max_iterations {
             s.max_iterations = v;
+        }
+        if let Some(v) = self.gravity {
+            s.gravity = v;
         }
         if let Some(v) = self.tolerance {
             anyhow::ensure!(

@@ -55,8 +55,11 @@ macro_rules! choice_enum {
             fn value_variants<'a>() -> &'a [Self] {
                 <Self as Choice>::ALL
             }
+            /// Also under the name `--json` prints (`soft_step` for `soft-step`).
             fn to_possible_value(&self) -> Option<clap::builder::PossibleValue> {
-                Some(clap::builder::PossibleValue::new(self.name()).help(self.help()))
+                let value = clap::builder::PossibleValue::new(self.name()).help(self.help());
+                let json = self.name().replace('-', "_");
+                Some(if json == self.name() { value } else { value.alias(json) })
             }
         }
     };
@@ -219,5 +222,28 @@ impl Settings {
             s.full_substeps_from = 0.0;
         }
         s
+    }
+}
+
+#[cfg(all(test, feature = "cli"))]
+mod tests {
+    use super::*;
+    use clap::ValueEnum;
+
+    /// Every choice parses from the command line under the name `--json` prints it by too.
+    #[test]
+    fn choices_parse_under_their_json_names() {
+        fn check<T: Choice + ValueEnum + Serialize + PartialEq + std::fmt::Debug>() {
+            for &choice in T::ALL {
+                let json = serde_json::to_value(choice).unwrap();
+                let json = json.as_str().unwrap().to_string();
+                assert_eq!(T::from_str(&json, false), Ok(choice), "{json}");
+                assert_eq!(T::from_str(choice.name(), false), Ok(choice));
+            }
+        }
+        check::<Solver>();
+        check::<BroadPhase>();
+        check::<ConstraintSchedule>();
+        check::<RotationIntegrator>();
     }
 }
