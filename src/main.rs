@@ -29,7 +29,8 @@ enum Command {
     Bench(BenchCommand),
     /// List the built-in scenes and the generated families.
     Scenes,
-    /// Regenerate tumble's meshes in assets/ and its generated scenes in scenes/.
+    /// Regenerate tumble's meshes in assets/ and its generated scene in scenes/ (the folders
+    /// are made where missing).
     GenAssets {
         /// Repository root to write into.
         #[arg(long, default_value = ".")]
@@ -102,10 +103,15 @@ fn main() -> ExitCode {
 }
 
 fn gen_assets(root: &std::path::Path) -> anyhow::Result<()> {
+    use std::io::Write;
     for (path, text) in tumble::scene::assets::generated_files() {
         let full = root.join(&path);
-        std::fs::write(&full, text)
-            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", full.display()))?;
+        if let Some(folder) = full.parent() {
+            std::fs::create_dir_all(folder)
+                .map_err(|e| anyhow::anyhow!("cannot make {}: {e}", folder.display()))?;
+        }
+        // Written whole or not at all, as every other output.
+        tumble::io::write_file_atomically(&full, |w| w.write_all(text.as_bytes()))?;
         println!("wrote {}", full.display());
     }
     Ok(())

@@ -168,6 +168,34 @@ fn shipped_assets_are_what_tumble_generates() {
     }
 }
 
+/// `tumble gen-assets --root` into a folder with no assets/ or scenes/ makes them and writes
+/// the files the repository ships.
+#[cfg(feature = "cli")]
+#[test]
+fn gen_assets_writes_the_shipped_files_into_a_fresh_root() {
+    let root = std::env::temp_dir().join(format!("tumble-gen-assets-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&root);
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))
+        .args(["gen-assets", "--root"])
+        .arg(&root)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut files = 0;
+    for folder in ["assets", "scenes"] {
+        for entry in std::fs::read_dir(root.join(folder)).unwrap().flatten() {
+            let name = Path::new(folder).join(entry.file_name());
+            let ours = std::fs::read(shipped.join(&name)).unwrap();
+            assert!(std::fs::read(entry.path()).unwrap() == ours, "{name:?}");
+            files += 1;
+        }
+    }
+    let _ = std::fs::remove_dir_all(&root);
+    assert_eq!(files, tumble::scene::assets::generated_files().len());
+}
+
 /// Every coursework mesh, `.mesh` and `.off`, loads as a shape with no warning: the OFF
 /// surfaces are closed and wound one way, and every mesh is convex enough.
 #[test]
