@@ -79,8 +79,10 @@ fn main() -> ExitCode {
         Some(Command::Bench(BenchCommand::Accuracy(args))) => cli::bench::accuracy(&args),
         Some(Command::Bench(BenchCommand::Soak(args))) => cli::bench::soak(&args),
         Some(Command::Scenes) => {
+            println!("built in (compiled into the binary):");
             for (name, file) in tumble::BUILTIN_SCENES {
-                println!("{name:16} scenes/{file}");
+                let what = tumble::scene::builtin_description(file);
+                println!("{name:16} {what}");
             }
             println!("\ngenerated (N bodies, at most 1,000,000):");
             for (name, what) in tumble::scene::generate::FAMILIES {

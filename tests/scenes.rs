@@ -106,10 +106,15 @@ fn every_coursework_scene_loads_and_runs_500_steps_with_either_solver() {
 
 #[test]
 fn every_builtin_scene_loads_and_runs() {
-    for (name, _) in tumble::BUILTIN_SCENES {
+    for (name, file) in tumble::BUILTIN_SCENES {
         let mut world =
             tumble::scene::load(name, &ConstraintsChoice::Auto, Settings::default()).unwrap();
         assert!(!world.bodies.is_empty());
+        // `tumble scenes` says what each is from its first comment line.
+        assert!(
+            !tumble::scene::builtin_description(file).is_empty(),
+            "{name}"
+        );
         assert!(world.warnings.is_empty(), "{name}: {:?}", world.warnings);
         run_finite(&mut world, 500, name);
     }

@@ -206,7 +206,10 @@ pub fn stress_scene() -> String {
             }
         }
     }
-    let mut out = format!("{}\n", records.len());
+    let mut out = format!(
+        "# Dozens of mixed bodies falling between fixed cylinder posts (tumble gen-assets).\n{}\n",
+        records.len()
+    );
     for r in records {
         let _ = writeln!(out, "{r}");
     }

@@ -41,6 +41,13 @@ pub const BUILTIN_SCENES: &[(&str, &str)] = &[
 
 pub const DEFAULT_SCENE: &str = "mixed";
 
+/// What the built-in scene compiled from `file` is: its first comment line.
+pub fn builtin_description(file: &str) -> &'static str {
+    embedded_file(&format!("scenes/{file}"))
+        .and_then(|text| text.lines().find_map(|line| line.strip_prefix('#')))
+        .map_or("", str::trim)
+}
+
 /// Loads a scene by path, or by built-in name when no such file exists.
 pub fn load(
     scene: &str,
