@@ -7,7 +7,7 @@ use glam::{DQuat, DVec3};
 use tumble::RigidBody;
 use tumble::scene::assets;
 use tumble::scene::generate::Rng;
-use tumble::sim::narrow_phase::{body_contact, sat_contact};
+use tumble::sim::narrow_phase::{body_contact, body_contact_patch, sat_contact};
 
 fn cube_at(p: DVec3, q: DQuat) -> (tumble::Shape, RigidBody) {
     let s = shape(&assets::cuboid(DVec3::ONE));
@@ -177,4 +177,34 @@ fn box_test_agrees_with_the_exact_box_distance() {
         touching > 2000 && apart > 2000,
         "{touching} touching, {apart} apart"
     );
+}
+
+/// Two of the coursework's boxes exactly face to face touch with no direction to push along
+/// (on hulls with points inside their faces parry gives no normal at zero distance): no patch,
+/// where `--contact-patches` made the normal NaN and blew both bodies up in their first step.
+#[test]
+fn a_patch_of_boxes_exactly_touching_has_no_nan() {
+    let Some(dir) = coursework_dir() else { return };
+    let path = dir.join("box_tri.mesh");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let s = shape(&tumble::io::parse_medit(&path, &text).unwrap());
+    // 12 x 6 x 8, centred: at heights 3 and 9 the two meet along y = 6.
+    let at =
+        |y: f64| RigidBody::on_shape(&s, 0, 1.0, false, DVec3::new(0.0, y, 0.0), DQuat::IDENTITY);
+    if let Some(c) = body_contact_patch(&at(3.0), &s, &at(9.0), &s).contact {
+        assert!(c.normal.is_finite() && c.depth.is_finite(), "{c:?}");
+    }
+    let settings = tumble::Settings {
+        contact_patches: true,
+        restitution: 0.0,
+        ..Default::default()
+    };
+    let bodies = vec![at(3.0), at(9.0)];
+    let mut world = tumble::World::new(vec![s], vec!["box".into()], bodies, Vec::new(), settings);
+    for _ in 0..50 {
+        world.step();
+    }
+    assert!(world.all_finite());
+    let (low, high) = (world.bodies[0].position, world.bodies[1].position);
+    assert!((high.y - low.y - 6.0).abs() < 0.3, "{low} {high}");
 }

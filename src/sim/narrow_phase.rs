@@ -304,26 +304,31 @@ pub fn body_contact_patch(
         &mut None,
     );
     let (mut depth, mut sum, mut count) = (0.0f64, DVec3::ZERO, 0);
-    let mut normal = DVec3::NAN;
+    let mut normal = None;
     if let (Ok(()), Some(manifold)) = (found, manifolds.first()) {
         for point in manifold.points.iter().filter(|p| p.dist <= 0.0) {
             depth = depth.max(-point.dist);
             sum += body2.world_point(point.local_p2);
             count += 1;
         }
-        normal = body1.orientation * manifold.local_n1;
+        // parry gives hulls exactly touching no normal (zero), which normalised was NaN.
+        normal = (body1.orientation * manifold.local_n1).try_normalize();
     }
-    if count == 0 || !normal.is_finite() || !sum.is_finite() {
-        // No patch: apart, unless GJK/EPA failed on intersecting hulls.
-        return match hull_contact(&pose1, shape1, &pose2, shape2) {
-            HullContact::EpaFailed => sat_fallback(body1, shape1, body2, shape2),
-            _ => Detection::apart(),
-        };
-    }
+    let normal = match normal {
+        Some(n) if count > 0 && sum.is_finite() => n,
+        // No patch: apart (or touching with no direction), unless GJK/EPA failed on
+        // intersecting hulls.
+        _ => {
+            return match hull_contact(&pose1, shape1, &pose2, shape2) {
+                HullContact::EpaFailed => sat_fallback(body1, shape1, body2, shape2),
+                _ => Detection::apart(),
+            };
+        }
+    };
     Detection {
         contact: Some(Contact {
             depth,
-            normal: normal.normalize(),
+            normal,
             point2: sum / count as f64,
         }),
         fallback: false,
