@@ -528,6 +528,33 @@ fn a_fixed_bodys_negative_density_is_named() {
     assert!(zero.warnings.is_empty(), "{:?}", zero.warnings);
 }
 
+/// Records on the same two points (either way round) whose ranges share no distance load with a
+/// warning naming both lines; ranges that overlap load without one.
+#[test]
+fn bounds_that_leave_no_distance_are_named() {
+    let dir = Dir::new("conflict");
+    dir.write("t.mesh", TET);
+    let scene = "2\nt.mesh 1 0 0 5 0 1 0 0 0\nt.mesh 1 0 0 8 0 1 0 0 0\n";
+    let apart = load(&dir, scene, Some("2\n0 0 1 0 0.5 0.6\n1 0 0 0 1.4 1.5\n")).unwrap();
+    let conflicts: Vec<&String> = apart
+        .warnings
+        .iter()
+        .filter(|w| w.contains("leave no distance"))
+        .collect();
+    assert_eq!(conflicts.len(), 1, "{:?}", apart.warnings);
+    assert!(
+        conflicts[0].contains("s-constraints.txt:3:") && conflicts[0].contains("on line 2"),
+        "{}",
+        conflicts[0]
+    );
+    let overlapping = load(&dir, scene, Some("2\n0 0 1 0 0.5 1.2\n1 0 0 0 1.0 1.5\n")).unwrap();
+    assert!(
+        overlapping.warnings.is_empty(),
+        "{:?}",
+        overlapping.warnings
+    );
+}
+
 #[test]
 fn records_out_of_step_name_their_line() {
     let dir = Dir::new("layout");

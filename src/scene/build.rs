@@ -102,6 +102,7 @@ pub(super) fn load_with(
         warnings.extend(parsed.layout_warning.map(|w| w.to_string()));
         distance_constraints =
             build_constraints(&cpath, &parsed.records, &bodies, &shapes, &mut warnings)?;
+        warnings.extend(conflicting_bounds(&cpath, &parsed.records));
     }
     let mut world = World::new(shapes, shape_names, bodies, distance_constraints, settings);
     world.warnings = warnings;
@@ -191,6 +192,40 @@ fn load_shape(
         ));
     }
     read_shape(source, mesh_path, parse)
+}
+
+/// A warning for each pair of points whose records' ranges have nothing in common (`0.5 0.6` and
+/// `1.4 1.5` on the same two vertices): no distance satisfies them all, so they stay violated.
+/// The bounds of one pair are fractions of the same distance, so they compare as they are.
+fn conflicting_bounds(file: &Path, records: &[ConstraintRecord]) -> Vec<String> {
+    let pair = |r: &ConstraintRecord| {
+        let (a, b) = ((r.body1, r.vertex1), (r.body2, r.vertex2));
+        if a <= b { (a, b) } else { (b, a) }
+    };
+    let mut order: Vec<usize> = (0..records.len()).collect();
+    order.sort_by_key(|&k| (pair(&records[k]), k));
+    let mut warnings = Vec::new();
+    for group in order.chunk_by(|&i, &j| pair(&records[i]) == pair(&records[j])) {
+        // The record with the highest lower bound against the one with the lowest upper.
+        let highest = group
+            .iter()
+            .max_by(|&&i, &&j| records[i].lower.total_cmp(&records[j].lower));
+        let lowest = group
+            .iter()
+            .min_by(|&&i, &&j| records[i].upper.total_cmp(&records[j].upper));
+        if let (Some(&h), Some(&l)) = (highest, lowest)
+            && records[h].lower > records[l].upper
+        {
+            let (first, second) = (h.min(l), h.max(l));
+            warnings.push(format!(
+                "{}:{}: this record's bounds and those on line {} leave no distance between the same two points: they stay violated",
+                file.display(),
+                records[second].line,
+                records[first].line,
+            ));
+        }
+    }
+    warnings
 }
 
 /// Each record becomes a lower and an upper inequality on the distance between the two vertices,
