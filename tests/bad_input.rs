@@ -505,10 +505,6 @@ fn off_surfaces_must_be_closed() {
     assert!(whole.warnings.is_empty() && seamed.warnings.is_empty());
 }
 
-/// The readers take records as one stream of words (as the coursework's do), so a field
-/// missing on one line shifts the records after it. Every coursework file holds one record a
-/// line: the first line that does not is named in the error, or in a warning when the shifted
-/// words still parse.
 /// A fixed body's density weighs nothing, so any value loads; a negative one is named on its
 /// line, as a sign typed by mistake, and zero (a coursework habit for fixed bodies) is not.
 #[test]
@@ -553,8 +549,30 @@ fn bounds_that_leave_no_distance_are_named() {
         "{:?}",
         overlapping.warnings
     );
+    // Points that start together: every fraction of 0 is 0, nothing conflicts.
+    let together = "2\nt.mesh 1 0 0 5 0 1 0 0 0\nt.mesh 1 0 0 5 0 1 0 0 0\n";
+    let conflicting = Some("2\n0 0 1 0 0.5 0.6\n1 0 0 0 1.4 1.5\n");
+    let world = load(&dir, together, conflicting).unwrap();
+    assert!(
+        !world
+            .warnings
+            .iter()
+            .any(|w| w.contains("leave no distance"))
+    );
+    // Between two fixed bodies the records are dropped, with their own warning only.
+    let fixed = "2\nt.mesh 1 1 0 5 0 1 0 0 0\nt.mesh 1 1 0 8 0 1 0 0 0\n";
+    let world = load(&dir, fixed, conflicting).unwrap();
+    assert!(
+        world.warnings.iter().all(|w| w.contains("ignored")),
+        "{:?}",
+        world.warnings
+    );
 }
 
+/// The readers take records as one stream of words (as the coursework's do), so a field
+/// missing on one line shifts the records after it. Every coursework file holds one record a
+/// line: the first line that does not is named in the error, or in a warning when the shifted
+/// words still parse.
 #[test]
 fn records_out_of_step_name_their_line() {
     let dir = Dir::new("layout");

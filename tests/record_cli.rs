@@ -324,7 +324,7 @@ fn frames_never_replace_an_input() {
             .arg(&scene)
             .arg("-o")
             .arg(&dir),
-        &format!("it is {}, which this run reads", scene.display()),
+        &format!("it would replace {}, which this run reads", scene.display()),
     );
     assert_eq!(std::fs::read_to_string(&scene).unwrap(), text);
 }

@@ -187,7 +187,12 @@ fn bench_accuracy_json_beside_the_csv_matches_it() {
             ])
             // Named time steps and combinations are run as named, --quick or not (it ran
             // dt 0.01 too).
-            .args(["--quick", "--combinations", "coursework,accurate", "--out"])
+            .args([
+                "--quick",
+                "--combinations",
+                "coursework,gyroscopic",
+                "--out",
+            ])
             .arg(&dir),
     );
     let json: serde_json::Value =
@@ -208,6 +213,14 @@ fn bench_accuracy_json_beside_the_csv_matches_it() {
         rows += 1;
     }
     assert_eq!(rows, 2, "one metric per combination:\n{csv}");
+    for combination in ["coursework", "gyroscopic"] {
+        let dts: Vec<&String> = json["free_fall"][combination]
+            .as_object()
+            .unwrap()
+            .keys()
+            .collect();
+        assert_eq!(dts, ["0.04"], "{combination}");
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }
 

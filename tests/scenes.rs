@@ -173,6 +173,26 @@ fn shipped_assets_are_what_tumble_generates() {
     }
 }
 
+/// `tumble scenes` names every built-in scene with what it is and every generated family.
+#[cfg(feature = "cli")]
+#[test]
+fn tumble_scenes_lists_each_scene_with_what_it_is() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))
+        .arg("scenes")
+        .output()
+        .unwrap();
+    let listing = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success());
+    for (name, file) in tumble::BUILTIN_SCENES {
+        let what = tumble::scene::builtin_description(file);
+        let line = format!("{name:16} {what}");
+        assert!(listing.lines().any(|l| l == line), "{line}\n{listing}");
+    }
+    for (family, _) in tumble::scene::generate::FAMILIES {
+        assert!(listing.lines().any(|l| l.starts_with(family)), "{family}");
+    }
+}
+
 /// `tumble gen-assets --root` into a folder with no assets/ or scenes/ makes them and writes
 /// the files the repository ships.
 #[cfg(feature = "cli")]

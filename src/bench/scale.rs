@@ -40,13 +40,14 @@ impl ScaleConfig {
     /// The default run, or with `quick` the short smoke run (sizes 100 and 1000, scatter-1000,
     /// 20 steps after 3 of warm-up, 5 s a run at most): every scene family and variant.
     pub fn defaults(quick: bool) -> ScaleConfig {
-        let (sizes, scatter_sizes) = match quick {
-            false => (vec![100, 1000, 10000], vec![1000, 10000, 100000]),
-            true => (vec![100, 1000], vec![1000]),
+        let (sizes, scatter_sizes) = if quick {
+            (vec![100, 1000], vec![1000])
+        } else {
+            (vec![100, 1000, 10000], vec![1000, 10000, 100000])
         };
         let (steps, warmup, max_seconds) = if quick { (20, 3, 5.0) } else { (500, 20, 30.0) };
         ScaleConfig {
-            scenes: FAMILIES.iter().map(|f| f.to_string()).collect(),
+            scenes: SCENE_FAMILIES.iter().map(|f| f.to_string()).collect(),
             sizes,
             scatter_sizes,
             huge: false,
@@ -59,8 +60,8 @@ impl ScaleConfig {
     }
 }
 
-/// The scene families `bench scale` runs.
-pub const FAMILIES: [&str; 4] = ["sparse", "pile", "chain", "scatter"];
+/// The generated scene families `bench scale` runs.
+pub const SCENE_FAMILIES: [&str; 4] = ["sparse", "pile", "chain", "scatter"];
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize)]
 #[serde(rename_all = "snake_case")]

@@ -8,7 +8,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use tumble::Settings;
 use tumble::bench::accuracy::{AccuracyConfig, AccuracyReport, primary_metric_of};
-use tumble::bench::scale::{FAMILIES, ScaleConfig, ScaleReport, Variant};
+use tumble::bench::scale::{SCENE_FAMILIES, ScaleConfig, ScaleReport, Variant};
 use tumble::bench::scenarios::Scenario;
 use tumble::bench::soak::SoakResult;
 
@@ -109,9 +109,12 @@ fn check_scale_config(config: &ScaleConfig) -> anyhow::Result<()> {
     if let Some(scene) = config
         .scenes
         .iter()
-        .find(|s| !FAMILIES.contains(&s.as_str()))
+        .find(|s| !SCENE_FAMILIES.contains(&s.as_str()))
     {
-        anyhow::bail!("unknown scene family '{scene}' ({})", FAMILIES.join(", "));
+        anyhow::bail!(
+            "unknown scene family '{scene}' ({})",
+            SCENE_FAMILIES.join(", ")
+        );
     }
     for (flag, sizes) in [
         ("--sizes", &config.sizes),
@@ -144,20 +147,16 @@ fn check_scale_config(config: &ScaleConfig) -> anyhow::Result<()> {
 
 /// The run asked for: what is given, and for the rest the defaults (or `--quick`'s).
 fn scale_config(args: &ScaleArgs) -> ScaleConfig {
-    let mut config = ScaleConfig::defaults(args.quick);
-    let given = |list: &Vec<usize>, default: &mut Vec<usize>| {
+    fn given<T: Clone>(list: &[T], default: &mut Vec<T>) {
         if !list.is_empty() {
-            *default = list.clone();
+            *default = list.to_vec();
         }
-    };
+    }
+    let mut config = ScaleConfig::defaults(args.quick);
     given(&args.sizes, &mut config.sizes);
     given(&args.scatter_sizes, &mut config.scatter_sizes);
-    if !args.scenes.is_empty() {
-        config.scenes = args.scenes.clone();
-    }
-    if !args.variants.is_empty() {
-        config.variants = args.variants.clone();
-    }
+    given(&args.scenes, &mut config.scenes);
+    given(&args.variants, &mut config.variants);
     config.steps = args.steps.unwrap_or(config.steps);
     config.warmup = args.warmup.unwrap_or(config.warmup);
     config.max_seconds = args.max_seconds.unwrap_or(config.max_seconds);

@@ -176,18 +176,19 @@ impl AtomicFile {
     /// one; what [`check_output_path`] refuses is refused here, before any work is done for it.
     pub fn create(path: &Path) -> anyhow::Result<Self> {
         let target = check_output_path(path)?;
-        let tmp = partial_path(&target);
-        let file = File::create(&tmp).with_context(|| {
+        // Listed before it exists, so that no exit finds it there unlisted.
+        let tmp = Unfinished::new(&partial_path(&target));
+        let file = File::create(tmp.path()).with_context(|| {
             format!(
                 "cannot write {} (as {} first)",
                 path.display(),
-                tmp.display()
+                tmp.path().display()
             )
         })?;
         Ok(Self {
             path: target,
             writer: BufWriter::new(file),
-            tmp: Unfinished::new(&tmp),
+            tmp,
         })
     }
 

@@ -102,7 +102,12 @@ pub(super) fn load_with(
         warnings.extend(parsed.layout_warning.map(|w| w.to_string()));
         distance_constraints =
             build_constraints(&cpath, &parsed.records, &bodies, &shapes, &mut warnings)?;
-        warnings.extend(conflicting_bounds(&cpath, &parsed.records));
+        warnings.extend(conflicting_bounds(
+            &cpath,
+            &parsed.records,
+            &bodies,
+            &shapes,
+        ));
     }
     let mut world = World::new(shapes, shape_names, bodies, distance_constraints, settings);
     world.warnings = warnings;
@@ -196,12 +201,28 @@ fn load_shape(
 
 /// A warning for each pair of points whose records' ranges have nothing in common (`0.5 0.6` and
 /// `1.4 1.5` on the same two vertices): no distance satisfies them all, so they stay violated.
-/// The bounds of one pair are fractions of the same distance, so they compare as they are.
-fn conflicting_bounds(file: &Path, records: &[ConstraintRecord]) -> Vec<String> {
+/// The bounds of one pair are fractions of the same distance, so they compare as they are;
+/// points that start together (all fractions of 0 are 0) and records between two fixed bodies
+/// (dropped, with their own warning) conflict in nothing. The records' indices are valid.
+fn conflicting_bounds(
+    file: &Path,
+    records: &[ConstraintRecord],
+    bodies: &[RigidBody],
+    shapes: &[Shape],
+) -> Vec<String> {
     let pair = |r: &ConstraintRecord| {
         let (a, b) = ((r.body1, r.vertex1), (r.body2, r.vertex2));
         if a <= b { (a, b) } else { (b, a) }
     };
+    let point = |(body, vertex): (usize, usize)| {
+        let b = &bodies[body];
+        b.world_point(shapes[b.shape].rest_vertices[vertex])
+    };
+    let counts = |r: &&ConstraintRecord| {
+        let (a, b) = pair(r);
+        !(bodies[a.0].fixed && bodies[b.0].fixed) && point(a) != point(b)
+    };
+    let records: Vec<&ConstraintRecord> = records.iter().filter(counts).collect();
     let mut order: Vec<usize> = (0..records.len()).collect();
     order.sort_by_key(|&k| (pair(&records[k]), k));
     let mut warnings = Vec::new();

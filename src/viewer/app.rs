@@ -348,8 +348,9 @@ impl App {
 
     fn start_recording(&mut self) {
         let path = PathBuf::from(self.panel.record_path.trim());
-        let time = self.session.world().time;
-        match Recording::start(&path, self.view_rect, self.panel.record_fps, time) {
+        let world = self.session.world();
+        let (rate, inputs) = ((self.panel.record_fps, world.time), &world.inputs);
+        match Recording::start(&path, self.view_rect, rate, inputs) {
             Ok(recording) => {
                 self.recording = Some(recording);
                 self.panel.message = Some(format!("recording to {}", path.display()));

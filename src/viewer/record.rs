@@ -69,15 +69,15 @@ struct GifEncoder {
 impl GifEncoder {
     /// Writes into `path`'s partial file, renamed into place by [`Encoder::finish`].
     fn create(path: &Path, width: u32, height: u32, fps: f64) -> anyhow::Result<GifEncoder> {
-        let tmp = partial_path(path);
-        let file = std::fs::File::create(&tmp).with_context(|| {
+        // Listed before it exists, so that no exit finds it there unlisted.
+        let tmp = Unfinished::new(&partial_path(path));
+        let file = std::fs::File::create(tmp.path()).with_context(|| {
             format!(
                 "cannot write {} (as {} first)",
                 path.display(),
-                tmp.display()
+                tmp.path().display()
             )
         })?;
-        let tmp = Unfinished::new(&tmp);
         let mut encoder = gif::Encoder::new(
             std::io::BufWriter::new(file),
             width as u16,
@@ -165,10 +165,27 @@ fn earlier_frames(folder: &Path) -> Vec<PathBuf> {
 }
 
 /// Refuses to record frames into `folder` where one of the frames it would replace is one of
-/// `inputs`, the files the run reads (the check [`crate::io::check_output`] makes of a video).
+/// `inputs`, the files the run reads. Only a frame that is the input's own file counts: the
+/// frames are unlinked, which leaves a file that a link named like a frame leads to, or that
+/// has another name too, as it was.
 pub fn check_frames_folder(folder: &Path, inputs: &[PathBuf]) -> anyhow::Result<()> {
+    let read: Vec<PathBuf> = inputs
+        .iter()
+        .filter_map(|p| std::fs::canonicalize(p).ok())
+        .collect();
     for frame in earlier_frames(folder) {
-        crate::io::check_output(&frame, inputs)?;
+        let own_file = std::fs::symlink_metadata(&frame).is_ok_and(|m| m.is_file());
+        if let Some(real) = own_file
+            .then(|| std::fs::canonicalize(&frame).ok())
+            .flatten()
+            && read.contains(&real)
+        {
+            bail!(
+                "cannot record into {}: it would replace {}, which this run reads",
+                folder.display(),
+                frame.display()
+            );
+        }
     }
     Ok(())
 }
@@ -390,13 +407,16 @@ impl FrameWriter {
         Ok(())
     }
 
+    /// Waits for the encoder thread; an error once it had already stopped on one (the
+    /// recording was abandoned and its file removed, see [`FrameWriter::push`]).
     fn join(&mut self) -> anyhow::Result<()> {
         drop(self.sender.take());
-        if let Some(thread) = self.thread.take() {
-            self.encode_s = thread
-                .join()
-                .map_err(|_| anyhow::anyhow!("the encoder thread panicked"))??;
-        }
+        let Some(thread) = self.thread.take() else {
+            bail!("the recording had already stopped on an error; its file was removed");
+        };
+        self.encode_s = thread
+            .join()
+            .map_err(|_| anyhow::anyhow!("the encoder thread panicked"))??;
         Ok(())
     }
 
@@ -679,6 +699,7 @@ mod tests {
     #[test]
     fn an_abandoned_recording_leaves_no_file() {
         let dir = std::env::temp_dir().join(format!("tumble-frames-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         let frame = || Image {
             width: 4,

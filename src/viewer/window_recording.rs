@@ -5,7 +5,7 @@
 use super::gpu::Image;
 use super::labels::{Label, LabelPainter};
 use super::present::{SceneView, prepare_scene};
-use super::record::FrameWriter;
+use super::record::{FrameWriter, OutputKind, check_frames_folder};
 use super::session::Lane;
 use super::window::{Gfx, ViewRect};
 use crate::{StepStats, World};
@@ -24,9 +24,22 @@ pub struct Recording {
 }
 
 impl Recording {
-    /// Starts recording the view into `path` from simulated time `time`; the error is the
-    /// message for the panel.
-    pub fn start(path: &Path, view: ViewRect, fps: f64, time: f64) -> Result<Recording, String> {
+    /// Starts recording the view into `path` from simulated time `time`, never over one of
+    /// `inputs` (the files the scene was read from); the error is the message for the panel.
+    pub fn start(
+        path: &Path,
+        view: ViewRect,
+        (fps, time): (f64, f64),
+        inputs: &[PathBuf],
+    ) -> Result<Recording, String> {
+        let checked = match OutputKind::of(path) {
+            Ok(OutputKind::PngDir) => {
+                check_frames_folder(path, inputs).map(|()| path.to_path_buf())
+            }
+            Ok(_) => crate::io::check_output(path, inputs),
+            Err(e) => Err(e),
+        };
+        let path = &checked.map_err(|e| format!("cannot record: {e:#}"))?;
         let [_, _, w, h] = view.0.map(|v| v.max(0.0) as u32);
         // Even sizes suit every format (H.264 needs them).
         let (width, height) = (w & !1, h & !1);

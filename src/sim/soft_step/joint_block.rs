@@ -112,12 +112,12 @@ impl HeldSides {
 
 /// A record's geometry at the current poses.
 #[derive(Debug, Clone, Copy, Default)]
-struct Geometry {
-    r1: DVec3,
-    r2: DVec3,
+pub(super) struct Geometry {
+    pub r1: DVec3,
+    pub r2: DVec3,
     /// Unit vector from point 1 to point 2.
-    axis: DVec3,
-    length: f64,
+    pub axis: DVec3,
+    pub length: f64,
 }
 
 /// A row's Jacobian along its axis, per end (body 1, body 2): the angular part `r x axis`, the
@@ -375,46 +375,49 @@ fn records_of(constraints: &[DistanceConstraint]) -> Vec<DistanceRecord> {
     out
 }
 
-// `geometry` and `jacobian` are inlined into their loops: called, their results came back
-// through the stack, and reading them back in wider loads than they were written in stalled
-// (a third of the velocity pass's own samples in `perf` on the two chains).
-#[inline(always)]
+/// A record's [`points_geometry`], none where its points coincide (the tests' checks).
+#[cfg(test)]
 fn geometry(r: &DistanceRecord, a: &RigidBody, b: &RigidBody) -> Option<Geometry> {
-    let r1 = a.orientation * r.local1;
-    let r2 = b.orientation * r.local2;
-    let d = (b.position + r2) - (a.position + r1);
-    let length = d.length();
-    (length > MIN_AXIS_LENGTH && length.is_finite()).then(|| Geometry {
-        r1,
-        r2,
-        axis: d / length,
-        length,
-    })
+    points_geometry((a, r.local1), (b, r.local2), |_, _| None)
 }
 
 /// Shortest distance between a record's points that gives it an axis of its own.
 const MIN_AXIS_LENGTH: f64 = 1e-12;
 
-/// [`geometry`], or for a record whose points coincide (a distance of 0 between them: a ball
-/// joint) the axis along `fallback(r1, r2)` (any axis where that is zero), so that it still holds
-/// them. Without one, the whole group went unsolved: a body pinned at a point by a zero-length
-/// record kept gravity's velocity step after step while its projection put it back (energy x8
-/// in 4 s, found by a review with hand-made scenes). None where the poses are not finite.
+/// The geometry of two body points (`local` to each body): their arms, the unit axis from the
+/// first to the second and their distance. Where they coincide (a distance of 0: a ball joint)
+/// the axis is `coincident_axis(r1, r2)`'s direction (`Y` where that is zero), or there is
+/// none if it gives None. None too where the poses are not finite. A record with no axis
+/// left its whole group unsolved: a body pinned at a point by a zero-length record kept
+/// gravity's velocity step after step while its projection put it back (energy x8 in 4 s,
+/// found by a review with hand-made scenes); its velocity rows now take the direction its
+/// points separate at.
+// `points_geometry` and `jacobian` are inlined into their loops: called, their results came
+// back through the stack, and reading them back in wider loads than they were written in
+// stalled (a third of the velocity pass's own samples in `perf` on the two chains).
 #[inline(always)]
-fn geometry_or(
-    r: &DistanceRecord,
-    (a, b): (&RigidBody, &RigidBody),
-    fallback: impl FnOnce(DVec3, DVec3) -> DVec3,
+pub(super) fn points_geometry(
+    (a, local1): (&RigidBody, DVec3),
+    (b, local2): (&RigidBody, DVec3),
+    coincident_axis: impl FnOnce(DVec3, DVec3) -> Option<DVec3>,
 ) -> Option<Geometry> {
-    geometry(r, a, b).or_else(|| {
-        let (r1, r2) = (a.orientation * r.local1, b.orientation * r.local2);
-        let length = ((b.position + r2) - (a.position + r1)).length();
-        (length.is_finite() && (r1 + r2).is_finite()).then(|| Geometry {
-            r1,
-            r2,
-            axis: fallback(r1, r2).try_normalize().unwrap_or(DVec3::Y),
-            length,
-        })
+    let r1 = a.orientation * local1;
+    let r2 = b.orientation * local2;
+    let d = (b.position + r2) - (a.position + r1);
+    let length = d.length();
+    if !length.is_finite() {
+        return None;
+    }
+    let axis = if length > MIN_AXIS_LENGTH {
+        d / length
+    } else {
+        coincident_axis(r1, r2)?.try_normalize().unwrap_or(DVec3::Y)
+    };
+    Some(Geometry {
+        r1,
+        r2,
+        axis,
+        length,
     })
 }
 
@@ -503,7 +506,8 @@ unsafe fn rate_and_drift(
     // SAFETY: the caller's contract.
     let (b1, b2) = unsafe { (bodies.get(r.body1), bodies.get(r.body2)) };
     let relative = b2.point_velocity(g.r2) - b1.point_velocity(g.r1);
-    // A record without an axis of its own ([`geometry_or`]) has no lengthening to anticipate.
+    // A record without an axis of its own ([`points_geometry`]) has no lengthening to
+    // anticipate.
     let ahead = if anticipate && r.lower == r.upper && g.length > MIN_AXIS_LENGTH {
         let ends = ((&poses[r.body1], b1), (&poses[r.body2], b2));
         drift_lengthening(g, relative, ends.0, ends.1, inv_h)
@@ -1190,8 +1194,8 @@ impl Scratch {
     }
 
     /// Each record's geometry at the current poses (`pose(i)`: body i's), along
-    /// `coincident_axis(record, r1, r2)` where its points coincide ([`geometry_or`]); false if a
-    /// record has none (poses not finite).
+    /// `coincident_axis(record, r1, r2)` where its points coincide ([`points_geometry`]); false
+    /// if a record has none (poses not finite).
     fn load_geometry<'p>(
         &mut self,
         records: &[DistanceRecord],
@@ -1200,8 +1204,8 @@ impl Scratch {
     ) -> bool {
         self.geometries.clear();
         for r in records {
-            let ends = (pose(r.body1), pose(r.body2));
-            match geometry_or(r, ends, |r1, r2| coincident_axis(r, r1, r2)) {
+            let ends = ((pose(r.body1), r.local1), (pose(r.body2), r.local2));
+            match points_geometry(ends.0, ends.1, |r1, r2| Some(coincident_axis(r, r1, r2))) {
                 Some(g) => self.geometries.push(g),
                 None => return false,
             }

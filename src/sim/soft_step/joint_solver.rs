@@ -5,6 +5,7 @@
 //! rigid in the relax pass. Unlike the coursework's projection of the centres of mass, nothing
 //! moves a body without the impulse that would move it, so no energy leaves with corrections.
 
+use super::joint_block::{Geometry, points_geometry};
 use super::softness::Softness;
 use super::solver_body::{SolverBody, inverse_effective_mass};
 use crate::sim::body::RigidBody;
@@ -49,14 +50,15 @@ pub fn prepare(
         .collect()
 }
 
-/// Current arms, unit axis from point 1 to point 2, and distance; None when the points coincide.
-fn geometry(row: &JointRow, poses: &[RigidBody]) -> Option<(DVec3, DVec3, DVec3, f64)> {
-    let (a, b) = (&poses[row.body1], &poses[row.body2]);
-    let r1 = a.orientation * row.local1;
-    let r2 = b.orientation * row.local2;
-    let d = (b.position + r2) - (a.position + r1);
-    let length = d.length();
-    (length > 1e-12 && length.is_finite()).then(|| (r1, r2, d / length, length))
+/// Current arms, unit axis from point 1 to point 2, and distance; where the points coincide the
+/// axis `coincident_axis` gives, or none.
+fn geometry(
+    row: &JointRow,
+    poses: &[RigidBody],
+    coincident_axis: impl FnOnce(DVec3, DVec3) -> Option<DVec3>,
+) -> Option<Geometry> {
+    let ends = (&poses[row.body1], &poses[row.body2]);
+    points_geometry((ends.0, row.local1), (ends.1, row.local2), coincident_axis)
 }
 
 /// The direction an impulse of this row pushes body 2 (body 1 the opposite way).
@@ -66,7 +68,8 @@ fn sign(row: &JointRow) -> f64 {
 
 pub fn warm_start(rows: &[JointRow], poses: &[RigidBody], bodies: &mut [SolverBody]) {
     for row in rows {
-        let Some((r1, r2, axis, _)) = geometry(row, poses) else {
+        // A row whose points coincide has no axis its impulse was along: not warm-started.
+        let Some(Geometry { r1, r2, axis, .. }) = geometry(row, poses, |_, _| None) else {
             continue;
         };
         let (b1, b2) = pair_mut(bodies, row.body1, row.body2);
@@ -87,7 +90,18 @@ pub fn solve(
     max_push: f64,
 ) {
     for row in rows.iter_mut() {
-        let Some((r1, r2, axis, length)) = geometry(row, poses) else {
+        // Points that coincide are held along the way they separate.
+        let separating = |r1: DVec3, r2: DVec3| {
+            let (b1, b2) = (&bodies[row.body1], &bodies[row.body2]);
+            Some(b2.point_velocity(r2) - b1.point_velocity(r1))
+        };
+        let Some(Geometry {
+            r1,
+            r2,
+            axis,
+            length,
+        }) = geometry(row, poses, separating)
+        else {
             continue;
         };
         let (b1, b2) = pair_mut(bodies, row.body1, row.body2);
