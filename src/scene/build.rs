@@ -224,9 +224,9 @@ fn conflicting_bounds(
     };
     let records: Vec<&ConstraintRecord> = records.iter().filter(counts).collect();
     let mut order: Vec<usize> = (0..records.len()).collect();
-    order.sort_by_key(|&k| (pair(&records[k]), k));
+    order.sort_by_key(|&k| (pair(records[k]), k));
     let mut warnings = Vec::new();
-    for group in order.chunk_by(|&i, &j| pair(&records[i]) == pair(&records[j])) {
+    for group in order.chunk_by(|&i, &j| pair(records[i]) == pair(records[j])) {
         // The record with the highest lower bound against the one with the lowest upper.
         let highest = group
             .iter()
