@@ -1505,3 +1505,18 @@ fn a_zero_length_joint_holds_its_points_together_without_gaining_energy() {
     let speed = world.bodies[1].linear_velocity.length();
     assert!(speed > 0.1, "it swings ({speed} units/s)");
 }
+
+/// A body the soft step put to sleep is awake once the coursework's solver, which never
+/// sleeps, takes over: flagged asleep it moved under that step, but the pose check passed it
+/// over, so a NaN went unreported (the world fuzz target's input `fuzz-0d172f429d8a`).
+#[test]
+fn switching_to_the_coursework_solver_wakes_the_sleepers() {
+    let mut world = boxes(1, accurate(0.02));
+    for _ in 0..200 {
+        world.step();
+    }
+    assert!(world.bodies.iter().all(|b| b.asleep), "settled and asleep");
+    world.settings = Settings::default();
+    world.step();
+    assert!(world.bodies.iter().all(|b| !b.asleep));
+}
