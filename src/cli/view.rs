@@ -142,7 +142,7 @@ pub struct RecordArgs {
     /// Draw contact points and normals.
     #[arg(long)]
     pub contacts: bool,
-    /// No ground grid.
+    /// No ground: its plane and grid, and the shadows cast on it.
     #[arg(long)]
     pub no_grid: bool,
     /// No constraint segments.
@@ -193,6 +193,10 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
     compare_settings(args.compare.as_deref())?;
     // Checked before the window opens (the view applies it once the scene is framed).
     if let Some(spec) = &args.camera {
+        anyhow::ensure!(
+            spec.trim() != "orbit",
+            "--camera orbit turns the camera over a recording (`tumble record`); the window's camera turns with the mouse"
+        );
         tumble::viewer::OrbitCamera::default()
             .apply_spec(spec)
             .map_err(anyhow::Error::msg)?;
@@ -288,6 +292,10 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
         &super::interrupt::interrupted,
     )?;
     bar.finish_and_clear();
+    if report.interrupted && report.frames == 0 {
+        eprintln!("interrupted before the first frame: nothing written");
+        std::process::exit(super::interrupt::exit_status());
+    }
     let frames = report.frames.max(1) as f64;
     println!(
         "wrote {} frames ({width}x{height}, {:.2} s simulated in {} steps) to {} in {:.2} s: {:.1} ms/frame \

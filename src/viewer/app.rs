@@ -69,6 +69,8 @@ pub fn run(world: World, options: ViewOptions) -> anyhow::Result<()> {
         let settings = (app.options.parse_settings)(spec)
             .map_err(|e| anyhow::anyhow!("--compare '{spec}': {e}"))?;
         app.session.compare(settings);
+        // The panel's field restarts the comparison with what it holds: the spec in use.
+        app.panel.compare_spec = spec.clone();
     }
     let event_loop = window::open_event_loop()?;
     event_loop

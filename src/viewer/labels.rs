@@ -90,10 +90,11 @@ impl LabelPainter {
         size: (u32, u32),
         labels: &[Label],
     ) {
-        // Text a little larger in larger frames.
-        self.ctx
-            .set_zoom_factor((size.1 as f32 / 400.0).clamp(0.8, 2.0));
-        let output = self.run(size, labels);
+        // Text a little larger in larger frames. (The context applies a new zoom from its next
+        // pass on: read back before it, the first frame's labels were placed at the old one.)
+        let zoom = (size.1 as f32 / 400.0).clamp(0.8, 2.0);
+        self.ctx.set_zoom_factor(zoom);
+        let output = self.run(size, labels, zoom);
         let jobs = self.ctx.tessellate(output.shapes, output.pixels_per_point);
         for (id, deltas) in &output.textures_delta.set {
             for delta in deltas {
@@ -119,8 +120,7 @@ impl LabelPainter {
 
     /// egui's output for the labels on a `size` screen (pixels); labels at the same place
     /// share a backing, one under the other.
-    fn run(&mut self, size: (u32, u32), labels: &[Label]) -> egui::FullOutput {
-        let zoom = self.ctx.zoom_factor();
+    fn run(&mut self, size: (u32, u32), labels: &[Label], zoom: f32) -> egui::FullOutput {
         let input = || egui::RawInput {
             screen_rect: Some(egui::Rect::from_min_size(
                 egui::Pos2::ZERO,
@@ -131,7 +131,9 @@ impl LabelPainter {
         let show = |ui: &mut egui::Ui| {
             for (k, group) in labels.chunk_by(|a, b| a.pos == b.pos).enumerate() {
                 let [x, y] = group[0].pos;
+                // Not faded in: a frame is a still, whatever came before it.
                 egui::Area::new(egui::Id::unique(("label", k)))
+                    .fade_in(false)
                     .fixed_pos(egui::pos2(x, y) / zoom)
                     .show(ui.ctx(), |ui| {
                         ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Extend);

@@ -655,7 +655,10 @@ pub fn record(
         progress(k + 1, frames);
     }
     let t = Instant::now();
-    report.encode_s = writer.finish()?.1;
+    // Interrupted before its first frame, a video would be a file with no picture: none is left.
+    if report.frames > 0 || !report.interrupted {
+        report.encode_s = writer.finish()?.1;
+    }
     report.encode_wait_s += t.elapsed().as_secs_f64();
     report.sim_time = recorded.worlds[0].0.time - start_time;
     report.wall_s = start.elapsed().as_secs_f64();
