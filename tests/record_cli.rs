@@ -491,6 +491,9 @@ fn view_without_display_points_to_record_and_run() {
     assert_eq!(output.status.code(), Some(1), "{stderr}");
     assert!(stderr.contains("cannot open a window"), "{stderr}");
     assert!(!stderr.contains("neither DISPLAY"), "{stderr}");
+    // `--camera orbit` is the recorder's: said before any window is looked for.
+    let view = ["view", "mixed", "--camera", "orbit"];
+    fails_saying(tumble().args(view), "turns the camera over a recording");
 }
 
 fn on_path(program: &str) -> bool {

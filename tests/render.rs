@@ -588,3 +588,31 @@ fn hidden_fixed_bodies_leave_no_pixel_and_show_the_pile() {
         "shown {shown:?}, hidden {hidden:?}"
     );
 }
+
+/// A recording stopped before its first frame leaves no video: a GIF of no frame would be a
+/// file with no picture. (Skipped, as the rendering tests are, without a GPU adapter.)
+#[test]
+fn a_recording_stopped_before_its_first_frame_leaves_no_file() {
+    let world = load("mixed");
+    if renderer_or_skip(&world, 64, 48).is_none() {
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("tumble-no-frame-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let options = tumble::viewer::RecordOptions {
+        output: dir.join("none.gif"),
+        seconds: 1.0,
+        fps: 10.0,
+        width: 64,
+        height: 48,
+        camera: None,
+        draw: DrawOptions::default(),
+        compare: None,
+    };
+    let report = tumble::viewer::record(world, &options, &mut |_, _| {}, &|| true).unwrap();
+    let left: Vec<_> = std::fs::read_dir(&dir).unwrap().flatten().collect();
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(report.interrupted && report.frames == 0);
+    assert!(left.is_empty(), "{left:?}");
+}

@@ -293,7 +293,7 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     )?;
     bar.finish_and_clear();
     if report.interrupted && report.frames == 0 {
-        eprintln!("interrupted before the first frame: nothing written");
+        eprintln!("interrupted before the first frame: no frame written");
         std::process::exit(super::interrupt::exit_status());
     }
     let frames = report.frames.max(1) as f64;

@@ -139,10 +139,12 @@ fn constraints(
     out
 }
 
-/// Cases the draws above do not reach, drawn last so that the corpus's inputs, which end
-/// before them (zeros: no change), keep their meaning: a body near the end of the double range
-/// (a soft-step panic at 9e307 was found by hand), and a constraint pair whose points start
-/// together (a zero-length joint, which the soft step once left unsolved).
+/// Cases the draws above do not reach, drawn last so that inputs that end before them (zeros:
+/// no change) keep their meaning (the corpus's five that ran on past the grab were cut to the
+/// bytes they used; their longer forms are kept beside them, as `-far`): a body near the end
+/// of the double range (a soft-step panic at 9e307 was found by hand), and a constraint pair
+/// whose points start together (a zero-length joint, which the soft step once left unsolved;
+/// the body moved leaves its other constraints violated, as a grab can).
 fn extremes(input: &mut Bytes, bodies: &mut [RigidBody], constraints: &mut [DistanceConstraint]) {
     if input.bit() {
         let k = input.byte() as usize % bodies.len();

@@ -53,6 +53,9 @@ pub struct World {
     contact_stage: ContactStage,
     soft_step: SoftStep,
     quarantine: Quarantine,
+    /// Whether bodies may be flagged asleep for the coursework's step to wake: a soft step
+    /// ran, or a state was restored, since its last step.
+    may_sleep: bool,
 }
 
 impl World {
@@ -73,6 +76,7 @@ impl World {
             quarantine: Quarantine::new(&bodies),
             contact_stage: ContactStage::default(),
             soft_step: SoftStep::default(),
+            may_sleep: false,
             shapes,
             shape_names,
             bodies,
@@ -141,8 +145,11 @@ impl World {
         // The coursework's method never sleeps: bodies the soft step put to sleep before a
         // switch of solver are awake again (still flagged, they moved under this step but the
         // pose check passed them over: a NaN went unreported; found by the world fuzz target).
-        for body in self.bodies.iter_mut().filter(|b| b.asleep) {
-            body.wake();
+        // Looked for only after a soft step: the pass reads every body.
+        if std::mem::take(&mut self.may_sleep) {
+            for body in self.bodies.iter_mut().filter(|b| b.asleep) {
+                body.wake();
+            }
         }
         let mut stats = StepStats::default();
         for _ in 0..ctx.settings.substeps {
@@ -160,6 +167,7 @@ impl World {
 
     /// The soft-step solver: collide once, solve and integrate in substeps, then the pose check.
     fn soft_step(&mut self, ctx: &StepContext) -> StepStats {
+        self.may_sleep = true;
         let mut stats = StepStats::default();
         let mut watch = self.stopwatch();
         // A grab of a body that is not there pulls nothing (as in the coursework's step).
@@ -243,6 +251,7 @@ impl World {
         self.step_count = state.step_count;
         self.soft_step.restore(&state.soft_step);
         self.quarantine.clone_from(&state.quarantine);
+        self.may_sleep = true;
     }
 
     /// Current world-space vertices of one body (the coursework's `currV`), computed on demand.

@@ -372,7 +372,7 @@ fn display_ui(ui: &mut egui::Ui, session: &mut Session, state: &mut PanelState) 
     let draw = &mut state.draw;
     ui.checkbox(&mut draw.shadows, "Shadows")
         .on_hover_text("From the key light: a 2048² shadow map with 3x3 filtering");
-    ui.checkbox(&mut draw.grid, "Ground grid");
+    ui.checkbox(&mut draw.grid, "Ground");
     ui.checkbox(&mut draw.constraints, "Constraint segments")
         .on_hover_text(
             "Green within bounds, through yellow to red at 10% of the rest length outside them",
