@@ -254,14 +254,7 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     });
     let compare = compare_settings(args.compare.as_deref())?;
     let world = args.scene.load(args.settings.settings()?)?;
-    // A video file is written where a link leads; a folder of frames is written as it is.
-    let output = match kind {
-        OutputKind::PngDir => {
-            tumble::viewer::record::check_frames_folder(&args.output, &world.inputs)?;
-            args.output.clone()
-        }
-        _ => tumble::io::check_output(&args.output, &world.inputs)?,
-    };
+    let output = tumble::viewer::record::check_recording_output(&args.output, &world.inputs)?;
     let options = RecordOptions {
         output,
         seconds: args.seconds,

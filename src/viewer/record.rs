@@ -164,11 +164,21 @@ fn earlier_frames(folder: &Path) -> Vec<PathBuf> {
         .collect()
 }
 
+/// The file or folder a recording to `path` writes, never over one of `inputs` (the files the
+/// run reads): a video where a link leads ([`crate::io::check_output`]), a folder of frames as
+/// it is ([`check_frames_folder`]).
+pub fn check_recording_output(path: &Path, inputs: &[PathBuf]) -> anyhow::Result<PathBuf> {
+    match OutputKind::of(path)? {
+        OutputKind::PngDir => check_frames_folder(path, inputs).map(|()| path.to_path_buf()),
+        _ => crate::io::check_output(path, inputs),
+    }
+}
+
 /// Refuses to record frames into `folder` where one of the frames it would replace is one of
 /// `inputs`, the files the run reads. Only a frame that is the input's own file counts: the
 /// frames are unlinked, which leaves a file that a link named like a frame leads to, or that
 /// has another name too, as it was.
-pub fn check_frames_folder(folder: &Path, inputs: &[PathBuf]) -> anyhow::Result<()> {
+fn check_frames_folder(folder: &Path, inputs: &[PathBuf]) -> anyhow::Result<()> {
     let read: Vec<PathBuf> = inputs
         .iter()
         .filter_map(|p| std::fs::canonicalize(p).ok())

@@ -5,7 +5,7 @@
 use super::gpu::Image;
 use super::labels::{Label, LabelPainter};
 use super::present::{SceneView, prepare_scene};
-use super::record::{FrameWriter, OutputKind, check_frames_folder};
+use super::record::{FrameWriter, check_recording_output};
 use super::session::Lane;
 use super::window::{Gfx, ViewRect};
 use crate::{StepStats, World};
@@ -32,14 +32,8 @@ impl Recording {
         (fps, time): (f64, f64),
         inputs: &[PathBuf],
     ) -> Result<Recording, String> {
-        let checked = match OutputKind::of(path) {
-            Ok(OutputKind::PngDir) => {
-                check_frames_folder(path, inputs).map(|()| path.to_path_buf())
-            }
-            Ok(_) => crate::io::check_output(path, inputs),
-            Err(e) => Err(e),
-        };
-        let path = &checked.map_err(|e| format!("cannot record: {e:#}"))?;
+        let path =
+            &check_recording_output(path, inputs).map_err(|e| format!("cannot record: {e:#}"))?;
         let [_, _, w, h] = view.0.map(|v| v.max(0.0) as u32);
         // Even sizes suit every format (H.264 needs them).
         let (width, height) = (w & !1, h & !1);
