@@ -423,7 +423,19 @@ fn a_dropped_mesh_is_a_body_above_the_ground() {
 
 /// Every text the panel lays out in one headless frame.
 fn panel_texts(session: &mut Session) -> Vec<String> {
-    use tumble::viewer::panel::{self, FrameInfo, PanelState};
+    let state = &mut tumble::viewer::panel::PanelState::default();
+    panel_frame(session, state, None).0
+}
+
+/// Every text a headless frame of the UI lays out, and the rectangle it leaves the view
+/// (points, in a 1280 x 2000 window): the second frame, as egui sizes a new area in its first
+/// without painting it.
+fn panel_frame(
+    session: &mut Session,
+    state: &mut tumble::viewer::panel::PanelState,
+    recording: Option<(&str, u64)>,
+) -> (Vec<String>, egui::Rect) {
+    use tumble::viewer::panel::{self, FrameInfo};
     let ctx = egui::Context::default();
     let input = egui::RawInput {
         screen_rect: Some(egui::Rect::from_min_size(
@@ -438,18 +450,40 @@ fn panel_texts(session: &mut Session) -> Vec<String> {
         adapter: "none",
         msaa: 1,
         draw_calls: 0,
-        recording: None,
+        recording,
     };
-    let frame = panel::run(&ctx, input, session, &mut PanelState::default(), &info);
-    frame
-        .output
-        .shapes
-        .iter()
+    panel::run(&ctx, input.clone(), session, state, &info);
+    let frame = panel::run(&ctx, input, session, state, &info);
+    let texts = (frame.output.shapes.iter())
         .filter_map(|clipped| match &clipped.shape {
             egui::Shape::Text(text) => Some(text.galley.job.text.clone()),
             _ => None,
         })
-        .collect()
+        .collect();
+    (texts, frame.view)
+}
+
+/// With the panel hidden (H) the view takes the whole window, and its corner says what the
+/// panel would of a recording, the last message and how to show the panel again.
+#[test]
+fn a_hidden_panel_leaves_the_whole_window_to_the_view() {
+    let mut s = session("two-chain", Settings::default());
+    let mut state = tumble::viewer::panel::PanelState::default();
+    let (shown, view) = panel_frame(&mut s, &mut state, Some(("out.gif", 1)));
+    assert!(shown.iter().any(|t| t.contains("time step")), "{shown:?}");
+    assert!(view.width() < 1000.0, "{view:?}");
+    state.hidden = true;
+    state.message = Some("screenshot written".into());
+    let (texts, view) = panel_frame(&mut s, &mut state, Some(("out.gif", 1)));
+    assert!(!texts.iter().any(|t| t.contains("time step")), "{texts:?}");
+    assert_eq!(view.width(), 1280.0);
+    for said in [
+        "REC out.gif: 1 frame",
+        "screenshot written",
+        "H: show the panel",
+    ] {
+        assert!(texts.iter().any(|t| t == said), "{said}: {texts:?}");
+    }
 }
 
 /// Settings from the command line beyond the panel's slider ranges stay as given until a slider

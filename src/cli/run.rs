@@ -5,7 +5,7 @@ use clap::Args;
 use serde::Serialize;
 use std::path::PathBuf;
 use std::time::Instant;
-use tumble::io::trajectory;
+use tumble::io::{counted, trajectory};
 use tumble::sim::quarantine::ABSURD_SPEED;
 use tumble::sim::stats::StageTimings;
 
@@ -20,7 +20,8 @@ pub struct RunArgs {
     /// every step (CSV).
     #[arg(long, value_name = "FILE.csv")]
     pub trajectory: Option<PathBuf>,
-    /// Print one JSON object instead of the text summary.
+    /// Print one JSON object instead of the text summary (JSON has no infinity: a number that
+    /// is not finite, as the energy of a run that blew up, is null).
     #[arg(long)]
     pub json: bool,
     #[command(flatten)]
@@ -237,11 +238,6 @@ impl RunSummary {
     }
 }
 
-/// "1 body", "2 bodies".
-fn counted(n: usize, one: &str, many: &str) -> String {
-    format!("{n} {}", if n == 1 { one } else { many })
-}
-
 fn print_summary(s: &RunSummary) {
     // Each constraint record is a lower and an upper inequality (the coursework's M counts both).
     let records = s.constraints / 2;
@@ -252,8 +248,12 @@ fn print_summary(s: &RunSummary) {
     println!(
         "scene {}: {}, {}{inequalities}",
         s.scene,
-        counted(s.bodies, "body", "bodies"),
-        counted(records, "distance constraint", "distance constraints"),
+        counted(s.bodies as u64, "body", "bodies"),
+        counted(
+            records as u64,
+            "distance constraint",
+            "distance constraints"
+        ),
     );
     println!(
         "{} steps ({} s simulated) in {:.3} s wall: {:.0} steps/s",

@@ -5,6 +5,7 @@ use super::{SceneArgs, SettingsArgs};
 use clap::{Args, Parser};
 use std::path::PathBuf;
 use tumble::Settings;
+use tumble::io::counted;
 
 /// The settings of a compared world: `--compare` takes a preset (`accurate`, `coursework`), the
 /// settings flags of `tumble run`, or a preset followed by flags.
@@ -61,7 +62,8 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
 pub struct ViewArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Window size in pixels.
+    /// Window size in pixels (at least 320x240; a window system may open a larger window than
+    /// asked, and the first line printed gives the size it opened).
     #[arg(long, value_name = "WxH", default_value = "1280x800", value_parser = parse_size)]
     pub size: (u32, u32),
     /// Quit after this many frames (smoke tests, frame-time measurements).
@@ -291,9 +293,9 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     }
     let frames = report.frames.max(1) as f64;
     println!(
-        "wrote {} frames ({width}x{height}, {:.2} s simulated in {} steps) to {} in {:.2} s: {:.1} ms/frame \
+        "wrote {} ({width}x{height}, {:.2} s simulated in {} steps) to {} in {:.2} s: {:.1} ms/frame \
          (simulate {:.1}, render+readback {:.1}, waiting for the encoder {:.1}; the encoder thread worked {:.1} ms/frame alongside) on {}",
-        report.frames,
+        counted(report.frames, "frame", "frames"),
         report.sim_time,
         report.steps,
         args.output.display(),
@@ -307,9 +309,9 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     );
     if report.interrupted {
         eprintln!(
-            "interrupted: {} holds the {} frames rendered before it",
+            "interrupted: {} holds the {} rendered before it",
             args.output.display(),
-            report.frames
+            counted(report.frames, "frame", "frames")
         );
         std::process::exit(super::interrupt::exit_status());
     }

@@ -24,6 +24,12 @@ pub use scene_file::{SceneRecord, parse_scene};
 use std::fmt;
 use std::path::{Path, PathBuf};
 
+/// A count with its noun for messages: "1 frame", "2 frames".
+pub fn counted(n: impl Into<u64>, one: &str, many: &str) -> String {
+    let n = n.into();
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
 /// The first element that repeats an earlier one, by `keys` (one per element, in order): the
 /// places `(earlier, later)` of that pair, or None. A mesh that lists an element twice counts
 /// its volume twice.
@@ -102,3 +108,15 @@ impl fmt::Display for LoadError {
 }
 
 impl std::error::Error for LoadError {}
+
+#[cfg(test)]
+mod tests {
+    use super::counted;
+
+    #[test]
+    fn counts_take_the_singular_only_for_one() {
+        assert_eq!(counted(1u64, "frame", "frames"), "1 frame");
+        assert_eq!(counted(0u64, "frame", "frames"), "0 frames");
+        assert_eq!(counted(2u32, "body", "bodies"), "2 bodies");
+    }
+}

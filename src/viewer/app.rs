@@ -78,7 +78,11 @@ pub fn run(world: World, options: ViewOptions) -> anyhow::Result<()> {
         .context("the window's event loop failed")?;
     if let Some(recording) = app.recording.take() {
         let (path, frames) = recording.finish()?;
-        eprintln!("recording: wrote {frames} frames to {}", path.display());
+        eprintln!(
+            "recording: wrote {} to {}",
+            crate::io::counted(frames, "frame", "frames"),
+            path.display()
+        );
     }
     if let Some(error) = app.error.take() {
         return Err(error);
@@ -365,7 +369,13 @@ impl App {
     fn stop_recording(&mut self) {
         if let Some(recording) = self.recording.take() {
             self.panel.message = Some(match recording.finish() {
-                Ok((path, frames)) => format!("wrote {frames} frames to {}", path.display()),
+                Ok((path, frames)) => {
+                    format!(
+                        "wrote {} to {}",
+                        crate::io::counted(frames, "frame", "frames"),
+                        path.display()
+                    )
+                }
                 Err(e) => format!("recording failed: {e:#}"),
             });
         }
@@ -390,7 +400,13 @@ impl App {
     /// recording: closed and kept, as when stopped (dropped, the file would be abandoned).
     fn recording_failed(&mut self, error: anyhow::Error) {
         let kept = match self.recording.take().map(Recording::finish) {
-            Some(Ok((path, frames))) => format!("; {} holds its {frames} frames", path.display()),
+            Some(Ok((path, frames))) => {
+                format!(
+                    "; {} holds its {}",
+                    path.display(),
+                    crate::io::counted(frames, "frame", "frames")
+                )
+            }
             Some(Err(e)) => format!("; and closing it: {e:#}"),
             None => String::new(),
         };
@@ -582,6 +598,7 @@ impl App {
         match input::shortcut(key) {
             Some(Shortcut::Action(action)) => self.handle_action(action),
             Some(Shortcut::Deselect) => self.panel.draw.selected = None,
+            Some(Shortcut::TogglePanel) => self.panel.hidden = !self.panel.hidden,
             None => {}
         }
     }

@@ -132,10 +132,12 @@ pub enum Shortcut {
     Action(Action),
     /// Esc: drop the selection.
     Deselect,
+    /// H: hide the panel (the view takes the whole window) or show it again.
+    TogglePanel,
 }
 
-/// Space play/pause, S step, R reset, F frame, P screenshot, Esc deselect, Left / Right one
-/// state back / forward in the history.
+/// Space play/pause, S step, R reset, F frame, P screenshot, H hide or show the panel, Esc
+/// deselect, Left / Right one state back / forward in the history.
 pub fn shortcut(key: &Key) -> Option<Shortcut> {
     match key {
         Key::Named(NamedKey::Space) => Some(Shortcut::Action(Action::TogglePlay)),
@@ -147,8 +149,31 @@ pub fn shortcut(key: &Key) -> Option<Shortcut> {
             "r" => Some(Shortcut::Action(Action::Reset)),
             "f" => Some(Shortcut::Action(Action::FrameScene)),
             "p" => Some(Shortcut::Action(Action::Screenshot)),
+            "h" => Some(Shortcut::TogglePanel),
             _ => None,
         },
         _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Keys are read as typed: with or without shift (or caps lock) they ask for the same.
+    #[test]
+    fn letter_keys_ask_for_their_action_in_either_case() {
+        for key in ["h", "H"] {
+            let pressed = shortcut(&Key::Character(key.into()));
+            assert!(matches!(pressed, Some(Shortcut::TogglePanel)), "{key}");
+        }
+        for key in ["p", "P"] {
+            let pressed = shortcut(&Key::Character(key.into()));
+            assert!(
+                matches!(pressed, Some(Shortcut::Action(Action::Screenshot))),
+                "{key}"
+            );
+        }
+        assert!(shortcut(&Key::Character("q".into())).is_none());
     }
 }

@@ -48,6 +48,8 @@ pub struct PanelState {
     pub edit_lane: usize,
     /// The camera keeps the selected body at the centre.
     pub follow: bool,
+    /// The panel is hidden (H): the view takes the whole window, as a small window needs.
+    pub hidden: bool,
 }
 
 impl Default for PanelState {
@@ -68,6 +70,7 @@ impl Default for PanelState {
             compare_error: None,
             edit_lane: 0,
             follow: false,
+            hidden: false,
         }
     }
 }
@@ -107,15 +110,17 @@ pub fn run(
         // No fill: the window is cleared to the panel colour before egui draws, which spares
         // software rasterisers a window-high quad every frame.
         let frame = egui::Frame::side_top_panel(ui.style()).fill(egui::Color32::TRANSPARENT);
-        egui::Panel::right("controls")
-            .frame(frame)
-            .default_size(360.0)
-            .size_range(260.0..=640.0)
-            .show(ui, |ui| {
-                actions = show(ui, session, state, info);
-            });
+        if !state.hidden {
+            egui::Panel::right("controls")
+                .frame(frame)
+                .default_size(360.0)
+                .size_range(260.0..=640.0)
+                .show(ui, |ui| {
+                    actions = show(ui, session, state, info);
+                });
+        }
         view = ui.available_rect_before_wrap();
-        overlay(ui.ctx(), view, session, state);
+        overlay(ui.ctx(), view, session, (state, info.recording));
     });
     UiFrame {
         output,
@@ -181,7 +186,8 @@ pub fn show(
             );
             ui.small(
                 "Space play/pause · S step · Left/Right back/forward (paused) · R reset · \
-                 F frame · P screenshot · Esc deselect · drop a scene or mesh file to open it",
+                 F frame · P screenshot · H hide this panel · Esc deselect · drop a scene or \
+                 mesh file to open it",
             );
         });
     actions
@@ -343,7 +349,10 @@ fn recording_controls(
             }
             ui.colored_label(
                 Color32::from_rgb(255, 90, 90),
-                format!("REC {path}: {frames} frames"),
+                format!(
+                    "REC {path}: {}",
+                    crate::io::counted(frames, "frame", "frames")
+                ),
             );
         }
         None => {
@@ -856,8 +865,14 @@ fn selection_ui(ui: &mut egui::Ui, session: &Session, selected: Option<usize>) {
 
 /// Over the 3D view: in the top left corner of each pane the world's label when comparing, and
 /// over the first the scene, time, play or rewind state, the sim/real ratio when the simulation
-/// falls behind, the grab's force and the picked body.
-pub fn overlay(ctx: &egui::Context, view: egui::Rect, session: &Session, state: &PanelState) {
+/// falls behind, the grab's force and the picked body; with the panel hidden, the recording
+/// and the last message it would show, and the key that shows it again.
+pub fn overlay(
+    ctx: &egui::Context,
+    view: egui::Rect,
+    session: &Session,
+    (state, recording): (&PanelState, Option<(&str, u64)>),
+) {
     let rect = [view.min.x, view.min.y, view.width(), view.height()];
     let panes = compare::panes(rect, session.lanes.len(), state.draw.layout);
     let painter = ctx.layer_painter(egui::LayerId::background());
@@ -878,6 +893,9 @@ pub fn overlay(ctx: &egui::Context, view: egui::Rect, session: &Session, state: 
                 ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Extend);
                 if k == 0 {
                     status_lines(ui, session);
+                    if state.hidden {
+                        hidden_panel_lines(ui, state, recording);
+                    }
                 }
                 if session.comparing() {
                     for &k in &pane.lanes {
@@ -890,6 +908,30 @@ pub fn overlay(ctx: &egui::Context, view: egui::Rect, session: &Session, state: 
                 }
             });
     }
+}
+
+/// What the hidden panel would show of a recording and its last message, and the key that
+/// shows it.
+fn hidden_panel_lines(ui: &mut egui::Ui, state: &PanelState, recording: Option<(&str, u64)>) {
+    if let Some((path, frames)) = recording {
+        let text = format!(
+            "REC {path}: {}",
+            crate::io::counted(frames, "frame", "frames")
+        );
+        ui.label(RichText::new(text).color(Color32::from_rgb(255, 90, 90)));
+    }
+    if let Some(message) = &state.message {
+        ui.label(
+            RichText::new(message)
+                .small()
+                .color(Color32::from_gray(210)),
+        );
+    }
+    ui.label(
+        RichText::new("H: show the panel")
+            .small()
+            .color(Color32::from_gray(160)),
+    );
 }
 
 /// The scene and time, paused or rewound, and the sim/real ratio when behind.
