@@ -1086,6 +1086,23 @@ fn cli_warns_of_settings_the_solver_ignores() {
         "{warned}"
     );
     assert!(!run(&["--friction", "0.3", "--accurate"]).contains("warning"));
+    // Each solver's own flags, given to the other.
+    let coursework_only = [
+        &["--max-iterations", "5"][..],
+        &["--tolerance", "0.1"],
+        &["--constraint-schedule", "sparse"],
+        &["--skip-separating-contacts"],
+        &["--contact-patches"],
+    ];
+    for flags in coursework_only {
+        let warned = run(&[flags, &["--accurate"]].concat());
+        let said = format!("warning: {} acts on the coursework's solver only", flags[0]);
+        assert!(warned.contains(&said), "{warned}");
+        assert!(!run(flags).contains("warning"), "{flags:?}");
+    }
+    let warned = run(&["--full-substeps-from", "0.05"]);
+    assert!(warned.contains("--full-substeps-from acts on the soft-step solver only"));
+    assert!(!run(&["--full-substeps-from", "0.05", "--accurate"]).contains("warning"));
     assert!(run(&["--dt", "0"]).contains("--dt 0: time does not advance"));
     assert!(run(&["--dt", "1e9"]).contains("--dt 1000000000: steps over 0.1 s"));
     // Not three hundred digits.

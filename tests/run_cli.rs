@@ -115,6 +115,9 @@ fn bodies_that_blow_up_are_named_and_the_run_goes_on() {
         stderr.contains("warning: body 4 blew up at step 2") && stderr.contains("frozen"),
         "{stderr}"
     );
+    // Ten by name, then one line for the rest (not one for each of the twenty).
+    assert_eq!(stderr.matches("blew up at step").count(), 10, "{stderr}");
+    assert_eq!(stderr.matches("more bodies blew up").count(), 1, "{stderr}");
     assert!(
         stdout.contains("all values finite: false (20 bodies blew up and were frozen: 4, 5,"),
         "{stdout}"
@@ -150,6 +153,11 @@ fn trajectory_survives(signal: libc::c_int, status: i32) {
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert_eq!(output.status.code(), Some(status), "{stderr}");
     assert!(stderr.contains("interrupted after"), "{stderr}");
+    // Said at once, with how to stop without waiting.
+    assert!(
+        stderr.contains("press Ctrl-C again to stop at once"),
+        "{stderr}"
+    );
     // Every completed step is there, whole: step 0 plus each step, 504 bodies each.
     let text = std::fs::read_to_string(&out).unwrap();
     let rows: Vec<&str> = text.lines().skip(1).collect();

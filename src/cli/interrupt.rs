@@ -7,11 +7,22 @@ use std::sync::atomic::{AtomicI32, Ordering};
 /// The signal that interrupted the run, or 0.
 static SIGNAL: AtomicI32 = AtomicI32::new(0);
 
+/// Said when the first signal arrives: a step or a frame may take long (a huge constraint
+/// budget, a tiny dt), and a user who sees nothing happen would not know a second one ends it.
+const FINISHING: &[u8] =
+    b"\ninterrupted: finishing the current step and writing what is done; press Ctrl-C again to stop at once\n";
+
 extern "C" fn on_signal(signal: libc::c_int) {
     // The first signal is the one the exit status reports.
     let _ = SIGNAL.compare_exchange(0, signal, Ordering::SeqCst, Ordering::SeqCst);
-    // Async-signal-safe: back to the default action for the next one, of either kind.
+    // Async-signal-safe: write(2), and back to the default action for the next one, of either
+    // kind.
     unsafe {
+        libc::write(
+            libc::STDERR_FILENO,
+            FINISHING.as_ptr().cast(),
+            FINISHING.len(),
+        );
         libc::signal(libc::SIGINT, libc::SIG_DFL);
         libc::signal(libc::SIGTERM, libc::SIG_DFL);
     }

@@ -192,18 +192,32 @@ impl SettingsArgs {
                 }
             ));
         }
-        if s.solver == Solver::Coursework {
-            let soft_only = [
-                (self.friction.is_some(), "--friction"),
-                (self.no_sleep, "--no-sleep"),
-            ];
-            for (given, flag) in soft_only {
-                if given {
-                    notes.push(format!(
-                        "{flag} acts on the soft-step solver only (the coursework's has no friction and no sleeping); add --accurate or --solver soft-step"
-                    ));
-                }
-            }
+        let (other, given, hint) = match s.solver {
+            Solver::Coursework => (
+                "the soft-step solver",
+                vec![
+                    (self.friction.is_some(), "--friction"),
+                    (self.no_sleep, "--no-sleep"),
+                    (self.full_substeps_from.is_some(), "--full-substeps-from"),
+                ],
+                "add --accurate or --solver soft-step",
+            ),
+            Solver::SoftStep => (
+                "the coursework's solver",
+                vec![
+                    (self.max_iterations.is_some(), "--max-iterations"),
+                    (self.tolerance.is_some(), "--tolerance"),
+                    (self.constraint_schedule.is_some(), "--constraint-schedule"),
+                    (self.skip_separating_contacts, "--skip-separating-contacts"),
+                    (self.contact_patches, "--contact-patches"),
+                ],
+                "the soft step solves contacts and constraints its own way; add --solver coursework",
+            ),
+        };
+        for (_, flag) in given.into_iter().filter(|(given, _)| *given) {
+            notes.push(format!(
+                "{flag} acts on {other} only and changes nothing here ({hint})"
+            ));
         }
         notes
     }

@@ -145,13 +145,11 @@ fn steps_until_interrupted(
             break;
         }
         let stats = world.step();
-        for &b in &stats.quarantined {
-            eprintln!(
-                "warning: body {b} blew up at step {} (a non-finite value or a speed above {:e} \
-                 units/s) and was frozen at its last good pose",
-                world.step_count, ABSURD_SPEED
-            );
-        }
+        warn_of_blow_ups(
+            &stats.quarantined,
+            summary.quarantined.len(),
+            world.step_count,
+        );
         summary.add_step(world, stats);
         if let Some(out) = trajectory.as_deref_mut() {
             trajectory::write_rows(out.writer(), world)?;
@@ -163,6 +161,29 @@ fn steps_until_interrupted(
     }
     Ok(completed)
 }
+
+/// Bodies that blew up and were frozen (at step `step`, after `earlier` others): one line each
+/// for the first [`BLOW_UP_LINES`], then one saying that more follow (a step of 1e300 s froze
+/// two thousand bodies of a pile, a line each); the summary lists them all.
+fn warn_of_blow_ups(frozen: &[usize], earlier: usize, step: u64) {
+    for (k, &b) in frozen.iter().enumerate() {
+        match earlier + k {
+            n if n < BLOW_UP_LINES => eprintln!(
+                "warning: body {b} blew up at step {step} (a non-finite value or a speed above {:e} \
+                 units/s) and was frozen at its last good pose",
+                ABSURD_SPEED
+            ),
+            BLOW_UP_LINES => eprintln!(
+                "warning: more bodies blew up from step {step} on and were frozen; the summary \
+                 counts them all"
+            ),
+            _ => return,
+        }
+    }
+}
+
+/// Bodies named one by one as they blow up.
+const BLOW_UP_LINES: usize = 10;
 
 impl RunSummary {
     fn start(scene: &str, steps: u64, world: &tumble::World, settings: tumble::Settings) -> Self {

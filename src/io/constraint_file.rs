@@ -57,7 +57,10 @@ pub fn parse_constraints(file: &Path, text: &str) -> Result<Records<ConstraintRe
         let line = extra.line;
         return Err(tokens.error(
             line,
-            format!("the file declares {count} constraints but has more records after them"),
+            format!(
+                "the file declares {} but has more records after them",
+                super::counted(count as u64, "constraint", "constraints")
+            ),
         ));
     }
     Ok(Records {

@@ -74,7 +74,10 @@ pub fn parse_scene(file: &Path, text: &str) -> Result<Records<SceneRecord>, Load
         let line = extra.line;
         return Err(tokens.error(
             line,
-            format!("the file declares {count} bodies but has more records after them"),
+            format!(
+                "the file declares {} but has more records after them",
+                super::counted(count as u64, "body", "bodies")
+            ),
         ));
     }
     Ok(Records {
