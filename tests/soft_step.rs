@@ -266,6 +266,120 @@ fn friction_holds_at_20_degrees_and_slides_at_30() {
     }
 }
 
+/// A 2 x 1 x 1.5 box resting on a fixed incline of `degrees` (as the bench's slope scenarios
+/// build it), and the direction down the slope.
+fn box_on_incline(degrees: f64, settings: Settings) -> (World, DVec3) {
+    let tilt = DQuat::from_rotation_z(degrees.to_radians());
+    let incline = common::shape(&assets::cuboid(DVec3::new(40.0, 1.0, 4.0)));
+    let block = common::shape(&assets::cuboid(DVec3::new(1.0, 0.5, 0.75)));
+    let base = DVec3::new(0.0, 60.0, 0.0);
+    let bodies = vec![
+        RigidBody::on_shape(&incline, 0, 100.0, true, base, tilt),
+        RigidBody::on_shape(
+            &block,
+            1,
+            100.0,
+            false,
+            base + 1.5 * (tilt * DVec3::Y),
+            tilt,
+        ),
+    ];
+    let names = vec!["incline".into(), "box".into()];
+    let world = World::new(vec![incline, block], names, bodies, vec![], settings);
+    (world, tilt * DVec3::NEG_X)
+}
+
+/// Where the box of [`box_on_incline`] is down the slope after `seconds`, from where it began.
+fn slid_down_incline(degrees: f64, settings: Settings, seconds: f64) -> (f64, World) {
+    let (mut world, down) = box_on_incline(degrees, settings);
+    let start = world.bodies[1].position;
+    while world.time < seconds - 1e-9 {
+        world.step();
+    }
+    ((world.bodies[1].position - start).dot(down), world)
+}
+
+/// With e = 1 and no restitution threshold (the soft step with the coursework's defaults), a
+/// box resting on an incline is not bounced off it: the approach gravity adds in a substep is
+/// a resting contact's, not an impact. Bounced, the box hopped in place and friction barely
+/// held (20 degrees: slid at 0.46 units/s^2; 30 degrees: 2.63 where g (sin a - mu cos a) is
+/// 0.66).
+#[test]
+fn an_elastic_box_rests_on_an_incline_without_a_threshold() {
+    let settings = Settings {
+        solver: tumble::sim::settings::Solver::SoftStep,
+        friction: 0.5,
+        ..Settings::default()
+    };
+    assert_eq!(
+        (settings.restitution, settings.restitution_threshold),
+        (1.0, 0.0)
+    );
+    let (held, _) = slid_down_incline(20.0, settings.clone(), 5.0);
+    assert!(held.abs() < 1e-3, "slid {held} at 20 degrees");
+    let a = 30f64.to_radians();
+    let expected = 9.8 * (a.sin() - 0.5 * a.cos());
+    let (slid, _) = slid_down_incline(30.0, settings, 5.0);
+    let measured = 2.0 * slid / 25.0;
+    assert!(
+        (measured - expected).abs() < 0.01 * expected,
+        "{measured} against {expected} at 30 degrees"
+    );
+}
+
+/// A box on an incline a little too steep for its friction starts from rest slower than the
+/// sleep speed and accelerates at g (sin a - mu cos a) = 0.083 units/s^2 (27 degrees,
+/// mu = 0.5): it does not fall asleep, as it did at 0.5 s when only its speed was asked
+/// (0.03 units moved in 10 s instead of 4.2). At 25 degrees friction holds it and it sleeps.
+#[test]
+fn a_box_starting_to_slide_down_an_incline_does_not_fall_asleep() {
+    let a = 27f64.to_radians();
+    let expected = 0.5 * 9.8 * (a.sin() - 0.5 * a.cos()) * 100.0;
+    let (slid, world) = slid_down_incline(27.0, accurate(0.02), 10.0);
+    assert!(!world.bodies[1].asleep);
+    assert!(
+        (slid - expected).abs() < 0.02 * expected,
+        "slid {slid} in 10 s where it slides {expected}"
+    );
+    let (held, world) = slid_down_incline(25.0, accurate(0.02), 10.0);
+    assert!(world.bodies[1].asleep && held.abs() < 1e-3, "{held}");
+}
+
+/// A box dropped onto a box resting on the ground bounces back about as off a rigid support,
+/// to `e^2` of its drop within a quarter (e = 0.5, dropped 2 units: 0.29): up to stop 64 the
+/// box below, driven into the ground, bounced too, and both bounces were counted against the
+/// one impact's energy (it went back up to 0.47 of its drop).
+#[test]
+fn a_box_dropped_on_a_resting_box_bounces_as_off_a_support() {
+    let e: f64 = 0.5;
+    let settings = Settings {
+        restitution: e,
+        ..awake(0.02)
+    };
+    let mut world = boxes(2, settings);
+    let rest = world.bodies[1].position.y;
+    let drop = 2.0;
+    world.bodies[1].position.y += drop;
+    let (mut bounced, mut apex) = (false, f64::NEG_INFINITY);
+    for _ in 0..200 {
+        world.step();
+        let top = &world.bodies[1];
+        bounced |= top.linear_velocity.y > 0.0 && top.position.y < rest + 0.1;
+        if bounced {
+            apex = apex.max(top.position.y);
+            if top.linear_velocity.y < 0.0 {
+                break;
+            }
+        }
+    }
+    let ratio = (apex - rest) / drop;
+    assert!(
+        bounced && ratio < 1.25 * e * e && ratio > 0.5 * e * e,
+        "bounced back to {ratio} of its drop (e^2 = {})",
+        e * e
+    );
+}
+
 #[test]
 fn pendulum_keeps_its_amplitude_and_period() {
     for (dt, amplitude_bound) in [(0.01, 0.01), (0.04, 0.02)] {

@@ -356,7 +356,8 @@ impl Batch {
         solver.solve_substeps(ctx, bodies, None, substeps, kicks);
         // (`solving` is the batch's moving bodies, `selected` all its constraints: see
         // `gather`.)
-        self.work.bounce(&self.bodies, &[], &ctx.settings);
+        self.work
+            .bounce(&self.bodies, &[], (&ctx.settings, substeps.h));
     }
 
     /// Copies the solved bodies, constraints and points back.

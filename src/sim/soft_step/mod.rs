@@ -186,7 +186,7 @@ impl Workspace {
         &mut self,
         poses: &[RigidBody],
         joints: &[DistanceConstraint],
-        settings: &crate::sim::Settings,
+        (settings, h): (&crate::sim::Settings, f64),
     ) {
         let before = &mut self.before_restitution;
         before.resize(self.bodies.len(), (DVec3::ZERO, DVec3::ZERO));
@@ -200,7 +200,7 @@ impl Workspace {
             (&self.colours, self.selected.as_deref()),
             (&mut self.contacts, &mut self.points),
             &mut self.bodies,
-            (settings.restitution, settings.restitution_threshold),
+            (settings.restitution, settings.restitution_threshold, h),
         );
         let contacts = restitution::Contacts {
             constraints: &self.contacts,
@@ -505,7 +505,8 @@ impl SoftStep {
         if stats.joint_projections_cut_short > 0 {
             self.joint_boost = (self.joint_boost + 1).min(MAX_JOINT_BOOST);
         }
-        self.finish(ctx, (scene.bodies, scene.constraints, scene.start), stats);
+        let parts = (&mut *scene.bodies, scene.constraints, &*scene.start);
+        self.finish(ctx, parts, substeps.h, stats);
         self.blocks.take_cycled(&mut self.relaxed_joints);
     }
 
@@ -750,10 +751,11 @@ impl SoftStep {
         &mut self,
         ctx: &StepContext,
         (bodies, constraints, start): (&mut [RigidBody], &[DistanceConstraint], &[(DVec3, DQuat)]),
+        h: f64,
         stats: &mut StepStats,
     ) {
         let w = &mut self.work;
-        w.bounce(bodies, constraints, &ctx.settings);
+        w.bounce(bodies, constraints, (&ctx.settings, h));
         for_each_indexed2(&w.moving, bodies, &mut w.bodies, |_, body, sb| {
             body.linear_velocity = sb.linear_velocity;
             body.angular_velocity = sb.angular_velocity;

@@ -4,13 +4,15 @@
 //! something wakes it: contact with a moving body, a constraint to one, a grab, or a change of
 //! settings. A body's speed counts its spin at its rim and is weighed by
 //! [`POSITION_SLEEP_FACTOR`]. A time window, not an instantaneous speed: a pendulum at its apex
-//! is still for an instant only; and a body held by constraints alone rests only while its
-//! velocity stays within the sleep speed of what it was when its rest began (a pendulum of 100
-//! units swinging by 2 is slower than the sleep speed for a second round each apex, and slept
-//! there, off centre, for ever). The island's energy, not each body's speed as in Box2D: in a
-//! pile of ten thousand one body rocking at 0.1 units/s in a contact's limit cycle kept every
-//! other awake (pile-10000 at dt 0.02 and restitution 0.15, 0.2 and 0.25 was asleep by 20 s,
-//! by 20 s and not within 30 s; on the island's energy at 13, 16 and 13 s).
+//! is still for an instant only; and a body held by constraints alone, or any in an island of a
+//! few, rests only while its velocity stays within [`REST_VELOCITY_CHANGE`] of what it was when
+//! its rest began (a pendulum of 100 units swinging by 2 is slower than the sleep speed for a
+//! second round each apex, and slept there, off centre, for ever; a box starting to slide down
+//! a slope too steep for its friction slept at 0.5 s; see [`FEW_BODIES`]). The island's energy,
+//! not each body's speed as in Box2D: in a pile of ten thousand one body rocking at 0.1 units/s
+//! in a contact's limit cycle kept every other awake (pile-10000 at dt 0.02 and restitution
+//! 0.15, 0.2 and 0.25 was asleep by 20 s, by 20 s and not within 30 s; on the island's energy
+//! at 13, 16 and 13 s).
 //!
 //! The speed is that of the step's displacement, as Rapier measures it, not of the velocities
 //! kept: those carry what the last Gauss-Seidel pass left unconverged in a deep pile, which the
@@ -44,6 +46,8 @@ pub struct Islands {
     sets: DisjointSets,
     /// Least sleep time in each island (by root).
     least: Vec<f64>,
+    /// Each island's awake bodies (by root).
+    members: Vec<u32>,
     /// Each island's mass and `sum m v^2` (by root).
     mass: Vec<f64>,
     energy: Vec<f64>,
@@ -59,6 +63,8 @@ impl Islands {
         self.sets.reset(n);
         self.least.clear();
         self.least.resize(n, f64::INFINITY);
+        self.members.clear();
+        self.members.resize(n, 0);
         for sums in [&mut self.mass, &mut self.energy] {
             sums.clear();
             sums.resize(n, 0.0);
@@ -109,14 +115,18 @@ pub fn settle(
     // islands: three passes over 100,000 bodies of 300 bytes took scatter-100000's sleeping
     // from 5-6.5 to 8.8-9.6 ms a step.
     let items = bodies.par_iter().zip(start).enumerate();
-    let awake: Vec<(usize, f64, f64)> = parallel::filter_map(items, 1024, |(i, (b, &(p0, q0)))| {
+    let awake: Vec<Awake> = parallel::filter_map(items, 1024, |(i, (b, &(p0, q0)))| {
         if !b.is_awake() {
             return None;
         }
         let turn = (q0.conjugate() * b.orientation).normalize();
         let angle = 2.0 * turn.xyz().length().atan2(turn.w.abs());
         let moved = (b.position - p0).length() + angle * radii[b.shape];
-        Some((i, POSITION_SLEEP_FACTOR * moved / dt, b.mass))
+        Some(Awake {
+            index: i,
+            speed: POSITION_SLEEP_FACTOR * moved / dt,
+            mass: b.mass,
+        })
     });
     islands.reset(bodies.len());
     let (touched, touched_sleepers) = (&mut islands.touched, &mut islands.touched_sleepers);
@@ -139,34 +149,26 @@ pub fn settle(
     }
     // Each island's mass and twice its kinetic energy (of the speeds above); each body's root
     // found once.
-    let roots: Vec<usize> = awake.iter().map(|&(i, ..)| islands.sets.root(i)).collect();
-    for (&(_, speed, mass), &root) in awake.iter().zip(&roots) {
-        islands.energy[root] += mass * speed * speed;
-        islands.mass[root] += mass;
+    let roots: Vec<usize> = (awake.iter()).map(|a| islands.sets.root(a.index)).collect();
+    for (a, &root) in awake.iter().zip(&roots) {
+        islands.energy[root] += a.mass * a.speed * a.speed;
+        islands.mass[root] += a.mass;
+        islands.members[root] += 1;
     }
-    for (&(i, speed, _), &root) in awake.iter().zip(&roots) {
+    for (a, &root) in awake.iter().zip(&roots) {
+        let i = a.index;
         let calm = islands.energy[root] < islands.mass[root] * SLEEP_SPEED * SLEEP_SPEED;
-        let b = &mut bodies[i];
-        b.moving = speed >= SLEEP_SPEED;
-        // A body held by constraints alone whose velocity has changed by the sleep speed since
-        // its rest began is accelerating, not resting: a slow pendulum near its apex, under
-        // the sleep speed for longer than the time to sleep. (Its velocities are the exact
-        // solve's; those of bodies in contact carry the pile's unconverged Gauss-Seidel, see
-        // above, and are not asked.)
-        let accelerating =
-            !islands.touched[i] && (b.linear_velocity - b.rest_velocity).length() > SLEEP_SPEED;
-        b.sleep_time = if !(calm && speed < SLEEP_SPEED_CAP) {
-            0.0
-        } else if b.sleep_time == 0.0 || accelerating {
-            b.rest_velocity = b.linear_velocity;
-            dt
-        } else {
-            b.sleep_time + dt
+        // How much its velocity may change while it rests (see [`FEW_BODIES`]).
+        let limit = match (islands.members[root] <= FEW_BODIES, islands.touched[i]) {
+            (true, _) => REST_VELOCITY_CHANGE,
+            (false, false) => SLEEP_SPEED,
+            (false, true) => f64::INFINITY,
         };
-        islands.least[root] = islands.least[root].min(b.sleep_time);
+        rest_for(&mut bodies[i], a, (calm, limit), dt);
+        islands.least[root] = islands.least[root].min(bodies[i].sleep_time);
     }
     // An island rests when its least rested body does.
-    for (&(i, ..), &root) in awake.iter().zip(&roots) {
+    for (&Awake { index: i, .. }, &root) in awake.iter().zip(&roots) {
         if islands.least[root] >= TIME_TO_SLEEP {
             let b = &mut bodies[i];
             b.asleep = true;
@@ -180,6 +182,53 @@ pub fn settle(
     islands
         .touched_sleepers
         .retain(|&j| least[sets.root(j)] < TIME_TO_SLEEP);
+}
+
+/// An awake body as [`settle`] measured its step.
+struct Awake {
+    index: usize,
+    /// The speed the sleep test weighs (see [`POSITION_SLEEP_FACTOR`]).
+    speed: f64,
+    mass: f64,
+}
+
+/// Islands of this many awake bodies or fewer have every body asked whether its velocity has
+/// changed since its rest began, by [`REST_VELOCITY_CHANGE`]: a box or a few on a slope.
+/// Larger ones ask only their bodies that touch nothing (held by distance constraints, whose
+/// velocities are the exact solve's, or a hair from a contact), and by the sleep speed. In a
+/// large island the velocities of bodies in contact carry the pile's unconverged Gauss-Seidel
+/// (see the module's documentation), and its bodies slip and rock now and then, each a little
+/// and briefly: the island's energy says whether it rests (asked of every body whether it
+/// accelerated away from where its rest began, pile-10000 at restitution 0.2 had 75 of its
+/// bodies asleep after 30 s, where it sleeps by 30 s). The price: a small island rocking in a
+/// contact's limit cycle stays awake while it rocks (pile_rest at dt 0.01: a few bodies at
+/// 0.11 units/s at 10 s, asleep at 12 s, where the whole pile had slept before 10 s).
+pub const FEW_BODIES: u32 = 16;
+
+/// Largest change of velocity since its rest began that an asked body may have and go on
+/// resting ([`FEW_BODIES`]): from rest, an acceleration of 0.04 units/s^2 reaches it within
+/// [`TIME_TO_SLEEP`]. A slow pendulum near its apex is under the sleep speed for longer than
+/// the time to sleep (one of 100 units swinging by 2 slept there, off centre, for ever, until
+/// stop 54 asked its velocity's change), and a box starting to slide down a slope too steep
+/// for its friction is under it for seconds: with the sleep speed as the limit, and touching
+/// bodies not asked, the box slept at 0.5 s (mu = 0.5, 27 degrees: 0.011 units moved in 10 s
+/// where it slides 4.2; under sideways gravity 0.1 units/s^2 beyond friction's hold, 0.014 of
+/// 1.25 in 5 s).
+pub const REST_VELOCITY_CHANGE: f64 = 0.4 * SLEEP_SPEED;
+
+/// Brings body `b`'s rest timer up to date after its step (`a`), in an island that is `calm`
+/// or not: a change of its velocity since its rest began beyond `limit` ends the rest.
+fn rest_for(b: &mut RigidBody, a: &Awake, (calm, limit): (bool, f64), dt: f64) {
+    b.moving = a.speed >= SLEEP_SPEED;
+    let changed = (b.linear_velocity - b.rest_velocity).length() > limit;
+    b.sleep_time = if !(calm && a.speed < SLEEP_SPEED_CAP) {
+        0.0
+    } else if b.sleep_time == 0.0 || changed {
+        b.rest_velocity = b.linear_velocity;
+        dt
+    } else {
+        b.sleep_time + dt
+    };
 }
 
 /// Wakes the sleeping islands of `seeds` (every sleeping body joined to one by touching
