@@ -1088,7 +1088,7 @@ fn cli_warns_of_settings_the_solver_ignores() {
     assert!(!run(&["--friction", "0.3", "--accurate"]).contains("warning"));
     // Each solver's own flags, given to the other.
     let coursework_only = [
-        &["--max-iterations", "5"][..],
+        &["--max-iterations", "100000"][..],
         &["--tolerance", "0.1"],
         &["--constraint-schedule", "sparse"],
         &["--skip-separating-contacts"],
@@ -1108,6 +1108,57 @@ fn cli_warns_of_settings_the_solver_ignores() {
     // Not three hundred digits.
     assert!(run(&["--dt", "1e300"]).contains("--dt 1e300: steps over 0.1 s"));
     assert!(!run(&["--dt", "0.1"]).contains("warning"));
+}
+
+/// A constraint file given with a generated scene is refused (it ran without it, in silence),
+/// `none` too; a built-in scene takes either.
+#[cfg(feature = "cli")]
+#[test]
+fn cli_refuses_a_constraint_file_for_a_generated_scene() {
+    let os = std::ffi::OsStr::new;
+    for (scene, choice) in [("pile-10", "none"), ("rope-5", "none"), ("rope-5", "c.txt")] {
+        cli_fails_saying(
+            &[os("run"), os(scene), os("--constraints"), os(choice)],
+            "a generated scene makes its own distance constraints",
+        );
+    }
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))
+        .args(["run", "two-chain", "--constraints", "none", "--steps", "1"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+}
+
+/// A constraint budget that cannot visit each inequality once a step is said, with the budget
+/// that can: chain-100's 180 inequalities get ceil(10000 / 180) = 56 visits a step.
+#[cfg(feature = "cli")]
+#[test]
+fn cli_warns_of_a_budget_short_of_one_pass() {
+    let stderr = |args: &[&str]| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(out.status.success());
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let warned = stderr(&["run", "chain-100", "--steps", "1"]);
+    assert!(
+        warned.contains("allows 56 constraint visits a step for 180 inequalities")
+            && warned.contains("--max-iterations 32400 or more"),
+        "{warned}"
+    );
+    let enough = [
+        "run",
+        "chain-100",
+        "--steps",
+        "1",
+        "--max-iterations",
+        "39204",
+    ];
+    assert!(!stderr(&enough).contains("warning"));
+    assert!(!stderr(&["run", "two-chain", "--steps", "1"]).contains("warning"));
+    assert!(!stderr(&["run", "chain-100", "--steps", "1", "--accurate"]).contains("warning"));
 }
 
 /// A negative count is named as one (clap's own message for it was "unexpected argument '-1'").

@@ -423,14 +423,25 @@ fn record_errors_are_clear() {
     fails_saying(tumble().args(slow).arg(dir.join("slow.mp4")), words);
 
     // A step too short to finish (5e-324 never advanced the time, past Ctrl-C).
-    for (dt, words) in [
+    for (dt, seconds, words) in [
         (
             "5e-324",
-            "--dt 5e-324: inf steps to record 0.2 s, more than 1e8",
+            "0.2",
+            "recording 0.2 s takes inf steps of 5e-324 s, more than 1e8",
         ),
-        ("1e-12", "--dt 1e-12: 2.0e11 steps to record 0.2 s"),
+        (
+            "1e-12",
+            "0.2",
+            "recording 0.2 s takes 2.0e11 steps of 1e-12 s",
+        ),
+        // Neither three hundred digits nor a --dt not given.
+        (
+            "0.02",
+            "1e300",
+            "recording 1e300 s takes 5.0e301 steps of 0.02 s",
+        ),
     ] {
-        let record = ["record", "cube", "--seconds", "0.2", "--dt", dt, "-o"];
+        let record = ["record", "cube", "--seconds", seconds, "--dt", dt, "-o"];
         fails_saying(tumble().args(record).arg(dir.join("d.gif")), words);
     }
 }

@@ -279,8 +279,30 @@ impl SceneArgs {
         for w in &world.warnings {
             eprintln!("warning: {w}");
         }
+        if let Some(note) = short_budget(&world) {
+            eprintln!("warning: {note}");
+        }
         Ok(world)
     }
+}
+
+/// Said where the coursework's constraint budget cannot visit each inequality once a step: the
+/// skeleton's rule (at most ceil(K / M) visits for M inequalities) is kept, but chain-10000 at
+/// the default budget projects one constraint a step, in silence but for "budget hit".
+fn short_budget(world: &tumble::World) -> Option<String> {
+    let s = &world.settings;
+    let m = world.constraints.len();
+    let visits = s.max_iterations.div_ceil(m.max(1));
+    (s.solver == Solver::Coursework && m > 0 && visits < m).then(|| {
+        format!(
+            "--max-iterations {} allows {} a step for {m} inequalities (the coursework's \
+             rule: ceil(K / M)), fewer than one pass over them; --max-iterations {} or more \
+             makes one pass",
+            s.max_iterations,
+            tumble::io::counted(visits as u64, "constraint visit", "constraint visits"),
+            m.saturating_mul(m)
+        )
+    })
 }
 
 /// Progress bar on stderr, hidden when stderr is not a terminal.

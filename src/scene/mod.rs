@@ -59,6 +59,13 @@ pub fn load(
         return load_file(path, constraints, settings);
     }
     if let Some(world) = generated(scene, &settings) {
+        // Given a constraint file, a generated scene ran without it, in silence.
+        if !matches!(constraints, ConstraintsChoice::Auto) {
+            let problem = "a generated scene makes its own distance constraints (chain-N, \
+                           rope-N) or none: a constraint file goes with a scene file or a \
+                           built-in scene";
+            return Err(LoadError::new(path, None, problem));
+        }
         return world.map_err(|problem| LoadError::new(path, None, problem));
     }
     match BUILTIN_SCENES.iter().find(|(name, _)| *name == scene) {

@@ -511,10 +511,18 @@ impl RecordOptions {
             // --dt 5e-324 stepped for ever (time plus the step is the time again), past Ctrl-C,
             // which is asked between frames.
             let steps = self.seconds / dt;
+            // (Not three hundred digits for --seconds 1e300 or --dt 5e-324, nor a flag the
+            // user did not give.)
+            let short = |x: f64| match x.abs() {
+                a if a != 0.0 && !(1e-4..1e9).contains(&a) => format!("{x:e}"),
+                _ => x.to_string(),
+            };
             anyhow::ensure!(
                 steps <= MAX_RECORD_STEPS,
-                "--dt {dt:e}: {steps:.1e} steps to record {} s, more than {MAX_RECORD_STEPS:.0e}",
-                self.seconds
+                "recording {} s takes {steps:.1e} steps of {} s, more than \
+                 {MAX_RECORD_STEPS:.0e}: record fewer --seconds or take a longer --dt",
+                short(self.seconds),
+                short(dt)
             );
         }
         anyhow::ensure!(
