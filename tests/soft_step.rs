@@ -330,7 +330,7 @@ fn an_elastic_box_rests_on_an_incline_without_a_threshold() {
 /// A box on an incline a little too steep for its friction starts from rest slower than the
 /// sleep speed and accelerates at g (sin a - mu cos a) = 0.083 units/s^2 (27 degrees,
 /// mu = 0.5): it does not fall asleep, as it did at 0.5 s when only its speed was asked
-/// (0.03 units moved in 10 s instead of 4.2). At 25 degrees friction holds it and it sleeps.
+/// (it hardly moved in 10 s instead of sliding 4.2). At 25 degrees friction holds it and it sleeps.
 #[test]
 fn a_box_starting_to_slide_down_an_incline_does_not_fall_asleep() {
     let a = 27f64.to_radians();
@@ -346,7 +346,7 @@ fn a_box_starting_to_slide_down_an_incline_does_not_fall_asleep() {
 }
 
 /// A box dropped onto a box resting on the ground bounces back about as off a rigid support,
-/// to `e^2` of its drop within a quarter (e = 0.5, dropped 2 units: 0.29): up to stop 64 the
+/// to between half and a quarter more than `e^2` of its drop (e = 0.5, dropped 2 units: 0.29): up to stop 64 the
 /// box below, driven into the ground, bounced too, and both bounces were counted against the
 /// one impact's energy (it went back up to 0.47 of its drop).
 #[test]

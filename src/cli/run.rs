@@ -340,8 +340,8 @@ fn print_summary(s: &RunSummary) {
             ""
         };
         println!(
-            "all values finite: false ({} bodies blew up and were frozen: {}{more})",
-            s.quarantined.len(),
+            "all values finite: false ({} blew up and were frozen: {}{more})",
+            counted(s.quarantined.len() as u64, "body", "bodies"),
             shown.join(", ")
         );
     }

@@ -200,7 +200,11 @@ impl Workspace {
             (&self.colours, self.selected.as_deref()),
             (&mut self.contacts, &mut self.points),
             &mut self.bodies,
-            (settings.restitution, settings.restitution_threshold, h),
+            (
+                settings.restitution,
+                settings.restitution_threshold,
+                settings.gravity * h,
+            ),
         );
         let contacts = restitution::Contacts {
             constraints: &self.contacts,

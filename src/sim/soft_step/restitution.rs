@@ -29,16 +29,16 @@ pub const ITERATIONS: usize = 8;
 /// Drives every bouncing point's normal velocity to its target ([`ITERATIONS`] passes over the
 /// manifolds that have one: in a pile at rest, none), colour by colour like the other passes,
 /// among the `selected` constraints (ascending) or all; `restitution` applies to impacts faster
-/// than `threshold` and than one substep of `h` adds to a resting contact's approach
-/// ([`resting_speed`]). Returns the indices of those manifolds' constraints.
+/// than `threshold` and than `kick` (gravity over one substep) adds to a resting contact's
+/// approach ([`resting_speed`]). Returns the indices of those manifolds' constraints.
 pub fn apply(
     (colours, selected): (&Colours, Option<&[u32]>),
     (constraints, points): (&mut [ContactConstraint], &mut [ContactPoint]),
     bodies: &mut [SolverBody],
-    (restitution, threshold, h): (f64, f64, f64),
+    (restitution, threshold, kick): (f64, f64, DVec3),
 ) -> Vec<u32> {
     let bounces = |c: &ContactConstraint, p: &ContactPoint| {
-        let speed = resting_speed(c, threshold, h);
+        let speed = resting_speed(c, threshold, kick);
         restitution > 0.0 && p.impact_energy > 0.5 * speed * speed && p.max_normal_impulse != 0.0
     };
     let view = (&*constraints, &*points);
@@ -84,13 +84,15 @@ pub fn apply(
 }
 
 /// The approach speed below which a point of `c` does not bounce: the `threshold`, or the
-/// speed gravity adds to the approach in one substep of `h` where that is more. A point
-/// resting on the ground is driven into it by that much every substep; bounced back at e = 1
-/// with no threshold, a box on a slope hopped in place and slid as if friction barely held
-/// (at 30 degrees with mu = 0.5, 2.63 units/s^2 where g (sin a - mu cos a) is 0.66). Under the
-/// preset (a threshold of 0.5, substeps of at most 1/200 s) the threshold is the larger.
-fn resting_speed(c: &ContactConstraint, threshold: f64, h: f64) -> f64 {
-    threshold.max(c.normal_acceleration.abs() * h)
+/// speed gravity's `kick` over one substep has along its normal where that is more. A body
+/// resting on the ground, or on a body the ground holds, is driven into its support by that
+/// much every substep; bounced back at e = 1 with no threshold, a box on a slope hopped in
+/// place and slid as if friction barely held (at 30 degrees with mu = 0.5, 2.63 units/s^2
+/// where g (sin a - mu cos a) is 0.66). Gravity's, not the pair's relative acceleration: two
+/// bodies of a stack fall alike, but the lower one is held. Under the preset (a threshold of
+/// 0.5, substeps of at most 1/200 s) the threshold is the larger.
+fn resting_speed(c: &ContactConstraint, threshold: f64, kick: DVec3) -> f64 {
+    threshold.max(kick.dot(c.normal).abs())
 }
 
 /// Kinetic plus gravitational potential energy of a body with velocities `v`, `w`.
@@ -281,11 +283,11 @@ fn slack(t: &EnergyTerms) -> f64 {
 /// The energy a group of bouncing bodies ends the step with (see [`settle_energy`]). With
 /// friction, which takes an unknown part of what the impacts took, the restitution pass's own
 /// result, but never more than `e^2` of the step's whole loss given back (the energetic
-/// coefficient's bound, Stronge 1990: the restitution phase returns at most `e^2` of what the
-/// compression absorbed, friction's share included). Capped at the step's starting energy
-/// alone, as until stop 64, a box dropped onto a resting box at e = 0.5 went back up to 0.8 of
-/// its height where a rigid support gives `e^2 = 0.25`: the box below, driven into the ground
-/// in the substeps, bounced too, and both bounces counted the same impact.
+/// coefficient, Stronge 1990, gives back `e^2` of the normal impulses' work; friction's loss
+/// counts in the whole here, so this is an upper bound). Capped at the step's starting energy
+/// alone, as until stop 64, a box dropped 0.6 units onto a resting box at e = 0.5 went back up
+/// to 0.8 of its drop where a rigid support gives `e^2 = 0.25`: the box below, driven into the
+/// ground in the substeps, bounced too, and both bounces counted the same impact.
 fn bounce_target(t: &EnergyTerms, rule: &EnergyRule) -> f64 {
     let e2 = rule.restitution * rule.restitution;
     let target = if rule.friction == 0.0 {

@@ -4,12 +4,12 @@
 //! something wakes it: contact with a moving body, a constraint to one, a grab, or a change of
 //! settings. A body's speed counts its spin at its rim and is weighed by
 //! [`POSITION_SLEEP_FACTOR`]. A time window, not an instantaneous speed: a pendulum at its apex
-//! is still for an instant only; and a body held by constraints alone, or any in an island of a
-//! few, rests only while its velocity stays within [`REST_VELOCITY_CHANGE`] of what it was when
-//! its rest began (a pendulum of 100 units swinging by 2 is slower than the sleep speed for a
-//! second round each apex, and slept there, off centre, for ever; a box starting to slide down
-//! a slope too steep for its friction slept at 0.5 s; see [`FEW_BODIES`]). The island's energy,
-//! not each body's speed as in Box2D: in a pile of ten thousand one body rocking at 0.1 units/s
+//! is still for an instant only; and a body held by constraints alone rests only while its
+//! velocity stays within the sleep speed of what it was when its rest began, any body in an
+//! island of a few within [`REST_VELOCITY_CHANGE`] (a pendulum of 100 units swinging by 2 is
+//! slower than the sleep speed for a second round each apex, and slept there, off centre, for
+//! ever; a box starting to slide down a slope too steep for its friction slept at 0.5 s; see
+//! [`FEW_BODIES`]). The island's energy, not each body's speed as in Box2D: in a pile of ten thousand one body rocking at 0.1 units/s
 //! in a contact's limit cycle kept every other awake (pile-10000 at dt 0.02 and restitution
 //! 0.15, 0.2 and 0.25 was asleep by 20 s, by 20 s and not within 30 s; on the island's energy
 //! at 13, 16 and 13 s).
@@ -206,8 +206,8 @@ struct Awake {
 pub const FEW_BODIES: u32 = 16;
 
 /// Largest change of velocity since its rest began that an asked body may have and go on
-/// resting ([`FEW_BODIES`]): from rest, an acceleration of 0.04 units/s^2 reaches it within
-/// [`TIME_TO_SLEEP`]. A slow pendulum near its apex is under the sleep speed for longer than
+/// resting ([`FEW_BODIES`]): from rest, an acceleration of more than 0.04 units/s^2 reaches it
+/// within [`TIME_TO_SLEEP`]. A slow pendulum near its apex is under the sleep speed for longer than
 /// the time to sleep (one of 100 units swinging by 2 slept there, off centre, for ever, until
 /// stop 54 asked its velocity's change), and a box starting to slide down a slope too steep
 /// for its friction is under it for seconds: with the sleep speed as the limit, and touching
