@@ -9,8 +9,8 @@
 //! island of a few within [`REST_VELOCITY_CHANGE`] (a pendulum of 100 units swinging by 2 is
 //! slower than the sleep speed for a second round each apex, and slept there, off centre, for
 //! ever; a box starting to slide down a slope too steep for its friction slept at 0.5 s; see
-//! [`FEW_BODIES`]). The island's energy, not each body's speed as in Box2D: in a pile of ten thousand one body rocking at 0.1 units/s
-//! in a contact's limit cycle kept every other awake (pile-10000 at dt 0.02 and restitution
+//! [`FEW_BODIES`]). The island's energy, not each body's speed as in Box2D: in a pile of ten
+//! thousand one body rocking at 0.1 units/s in a contact's limit cycle kept every other awake (pile-10000 at dt 0.02 and restitution
 //! 0.15, 0.2 and 0.25 was asleep by 20 s, by 20 s and not within 30 s; on the island's energy
 //! at 13, 16 and 13 s).
 //!
