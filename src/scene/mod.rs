@@ -58,14 +58,7 @@ pub fn load(
     if path.exists() {
         return load_file(path, constraints, settings);
     }
-    if let Some(world) = generated(scene, &settings) {
-        // Given a constraint file, a generated scene ran without it, in silence.
-        if !matches!(constraints, ConstraintsChoice::Auto) {
-            let problem = "a generated scene makes its own distance constraints (chain-N, \
-                           rope-N) or none: a constraint file goes with a scene file or a \
-                           built-in scene";
-            return Err(LoadError::new(path, None, problem));
-        }
+    if let Some(world) = generated(scene, constraints, &settings) {
         return world.map_err(|problem| LoadError::new(path, None, problem));
     }
     match BUILTIN_SCENES.iter().find(|(name, _)| *name == scene) {
@@ -96,8 +89,13 @@ pub const MAX_GENERATED: usize = 1_000_000;
 
 /// `sparse-N`, `scatter-N`, `pile-N`, `chain-N`, `rope-N` or `stack-N`: a generated scene, an
 /// error naming the problem when the family is known but N is not a count from 1 to
-/// `MAX_GENERATED`, and `None` when the name is no family's.
-fn generated(name: &str, settings: &Settings) -> Option<Result<World, String>> {
+/// `MAX_GENERATED` or `constraints` names a file or none (given one, a generated scene ran
+/// without it, in silence), and `None` when the name is no family's.
+fn generated(
+    name: &str,
+    constraints: &ConstraintsChoice,
+    settings: &Settings,
+) -> Option<Result<World, String>> {
     let (kind, n) = name.rsplit_once('-')?;
     let family = format!("{kind}-N");
     generate::FAMILIES.iter().find(|(f, _)| *f == family)?;
@@ -109,6 +107,12 @@ fn generated(name: &str, settings: &Settings) -> Option<Result<World, String>> {
             )));
         }
     };
+    // Refused before the scene is built: a million bodies for an error.
+    if !matches!(constraints, ConstraintsChoice::Auto) {
+        let problem = "a generated scene makes its own distance constraints (chain-N, rope-N) \
+                       or none: a constraint file goes with a scene file or a built-in scene";
+        return Some(Err(problem.into()));
+    }
     generate::by_name(kind, n, settings.clone()).map(Ok)
 }
 

@@ -347,13 +347,7 @@ fn recording_controls(
             if ui.button("Stop recording").clicked() {
                 actions.push(Action::StopRecording);
             }
-            ui.colored_label(
-                Color32::from_rgb(255, 90, 90),
-                format!(
-                    "REC {path}: {}",
-                    crate::io::counted(frames, "frame", "frames")
-                ),
-            );
+            ui.label(recording_label(path, frames));
         }
         None => {
             if ui
@@ -910,15 +904,21 @@ pub fn overlay(
     }
 }
 
+/// "REC path: N frames", in red: the panel's record row and, with the panel hidden, the view's
+/// corner.
+fn recording_label(path: &str, frames: u64) -> RichText {
+    let text = format!(
+        "REC {path}: {}",
+        crate::io::counted(frames, "frame", "frames")
+    );
+    RichText::new(text).color(Color32::from_rgb(255, 90, 90))
+}
+
 /// What the hidden panel would show of a recording and its last message, and the key that
 /// shows it.
 fn hidden_panel_lines(ui: &mut egui::Ui, state: &PanelState, recording: Option<(&str, u64)>) {
     if let Some((path, frames)) = recording {
-        let text = format!(
-            "REC {path}: {}",
-            crate::io::counted(frames, "frame", "frames")
-        );
-        ui.label(RichText::new(text).color(Color32::from_rgb(255, 90, 90)));
+        ui.label(recording_label(path, frames));
     }
     if let Some(message) = &state.message {
         ui.label(
