@@ -1,5 +1,6 @@
 //! Contact constraints of the soft-step solver. Each manifold point has a normal impulse,
-//! clamped non-negative, corrected softly when penetrating and speculative when apart; friction
+//! clamped non-negative, corrected softly when penetrating and speculative when apart, a
+//! manifold's points solved together ([`super::normal_block`]); friction
 //! acts per manifold, as Rapier's "simplified" model does: a tangential impulse in two
 //! directions at the patch's centre, clamped to the disc `mu` times the points' total normal
 //! impulse, and a twist impulse about the normal clamped to the same times the patch's radius
@@ -10,10 +11,11 @@
 
 use super::constraint_graph::{Colours, Shared, with_pair};
 use super::manifold::{GROUND, MAX_POINTS, Manifold, ManifoldPoint};
+use super::normal_block::{self, Column};
 use super::softness::Softness;
 use super::solver_body::SolverBody;
 use crate::sim::{buffer, parallel};
-use glam::{DQuat, DVec3};
+use glam::{DMat3, DQuat, DVec3};
 use rayon::prelude::*;
 use std::mem::MaybeUninit;
 
@@ -818,7 +820,9 @@ fn on_copies(
     }
 }
 
-/// The normal impulses of one manifold's points.
+/// The normal impulses of one manifold's points: solved together ([`normal_block`]) where it
+/// has several, so the pass does not depend on the points' order; point after point where the
+/// block cannot be solved (a value not finite).
 ///
 /// Inlined into the pass, as [`Friction::solve`] is: called, it took the normal and the
 /// softness through the stack, stored in 8-byte halves and loaded in 16-byte pieces, a
@@ -833,37 +837,105 @@ fn solve_normals(
 ) {
     let n = c.normal;
     let use_bias = pass == Pass::Soft;
-    // The normal velocities before any of this manifold's impulses: the approach speeds of
-    // points that touch together. (Each point's row is formed again below rather than kept:
-    // an array of four rows was zeroed by a call to memset in every manifold's pass.)
+    let rows: [Direction; MAX_POINTS] = std::array::from_fn(|k| {
+        points
+            .get(k)
+            .map_or(Direction::default(), |p| p.along_normal(n))
+    });
+    // The normal velocities before any of this manifold's impulses (the approach speeds of
+    // points that touch together), each point's separation now and its soft coefficients.
     let mut approach = [0.0; MAX_POINTS];
-    for (v, p) in approach.iter_mut().zip(points.iter()) {
-        *v = p.along_normal(n).velocity(n, b1, b2);
-    }
-    for (k, (p, &approach)) in points.iter_mut().zip(&approach).enumerate() {
-        let row = p.along_normal(n);
+    let mut terms = [(0.0, (0.0, 1.0, 0.0)); MAX_POINTS];
+    for (k, p) in points.iter().enumerate() {
+        approach[k] = rows[k].velocity(n, b1, b2);
         let moved = b2.point_displacement(p.r2) - b1.point_displacement(p.r1);
         let s = p.separation + n.dot(moved);
-        let (bias, mass_scale, impulse_scale) = soft.coefficients(s, inv_h, use_bias, max_push);
-        // The first point sees no impulse of this manifold yet: its approach, bit for bit.
-        let vn = match k {
-            0 => approach,
-            _ => row.velocity(n, b1, b2),
+        terms[k] = (s, soft.coefficients(s, inv_h, use_bias, max_push));
+    }
+    let solved = match points.len() {
+        1 => None,
+        _ => solve_block(points, (b1, b2), (&rows, &approach, &terms)),
+    };
+    for (k, p) in points.iter_mut().enumerate() {
+        let (s, (bias, mass_scale, impulse_scale)) = terms[k];
+        let total = match solved {
+            Some(x) => x[k],
+            None => {
+                // The first point sees no impulse of this manifold yet: its approach.
+                let vn = if k == 0 {
+                    approach[k]
+                } else {
+                    rows[k].velocity(n, b1, b2)
+                };
+                let impulse =
+                    -p.normal_mass * mass_scale * (vn + bias) - impulse_scale * p.normal_impulse;
+                (p.normal_impulse + impulse).max(0.0)
+            }
         };
-        let impulse = -p.normal_mass * mass_scale * (vn + bias) - impulse_scale * p.normal_impulse;
-        let total = (p.normal_impulse + impulse).max(0.0);
         let delta = total - p.normal_impulse;
         p.normal_impulse = total;
         p.max_normal_impulse = p.max_normal_impulse.max(total);
-        if total > 0.0 && approach < 0.0 {
+        if total > 0.0 && approach[k] < 0.0 {
             // Measured at the poses of this pass with the velocity there, where the energy is
             // exactly invariant.
             let a = c.normal_acceleration;
-            let synchronised = approach - pass.to_synchronised(a, 1.0 / inv_h);
+            let synchronised = approach[k] - pass.to_synchronised(a, 1.0 / inv_h);
             p.impact_energy = p.impact_energy.max(impact_energy(s, synchronised, a));
         }
-        row.apply(n, delta, b1, b2);
+        rows[k].apply(n, delta, b1, b2);
     }
+}
+
+/// A point's separation now and its soft coefficients (bias, mass scale, impulse scale).
+type PointTerms = (f64, (f64, f64, f64));
+
+/// The new accumulated normal impulses of a manifold's points solved together: each active
+/// point where Gauss-Seidel converges, `v_i + bias_i + c_i x_i = 0` (the soft row's fixed
+/// point, `c_i = impulse scale K_ii / mass scale`; zero for a rigid row), with `v` the normal
+/// velocities the impulses `x - x_old` leave through the manifold's matrix `K`. Per point:
+/// its normal row, its normal velocity now, its (separation, soft coefficients).
+#[inline(always)]
+fn solve_block(
+    points: &[ContactPoint],
+    (b1, b2): (&SolverBody, &SolverBody),
+    (rows, velocity, terms): (&[Direction; MAX_POINTS], &Column, &[PointTerms; MAX_POINTS]),
+) -> Option<Column> {
+    let count = points.len();
+    let held: Column = std::array::from_fn(|k| points.get(k).map_or(0.0, |p| p.normal_impulse));
+    // Nothing held and nothing approaching: no impulse is the solution, without `K`.
+    let apart = |i: usize| held[i] == 0.0 && velocity[i] + terms[i].1.0 >= 0.0;
+    if (0..count).all(apart) {
+        return Some([0.0; MAX_POINTS]);
+    }
+    let linear = b1.inverse_mass + b2.inverse_mass;
+    // A body impulses cannot turn (the ground, a sleeper) adds nothing angular to `K`: half
+    // of it spared on a pile's ground contacts.
+    let turns = |b: &SolverBody| b.inverse_inertia != DMat3::ZERO;
+    let (turns1, turns2) = (turns(b1), turns(b2));
+    let mut a: normal_block::Block = [[0.0; MAX_POINTS]; MAX_POINTS];
+    for i in 0..count {
+        for j in i..count {
+            let mut k = linear;
+            if turns1 {
+                k += rows[i].ang1.dot(rows[j].inv1);
+            }
+            if turns2 {
+                k += rows[i].ang2.dot(rows[j].inv2);
+            }
+            a[i][j] = k;
+            a[j][i] = k;
+        }
+    }
+    let mut q = [0.0; MAX_POINTS];
+    for i in 0..count {
+        let (_, (bias, mass_scale, impulse_scale)) = terms[i];
+        q[i] = velocity[i] + bias - (0..count).map(|j| a[i][j] * held[j]).sum::<f64>();
+        if mass_scale.is_nan() || mass_scale <= 0.0 {
+            return None;
+        }
+        a[i][i] += impulse_scale * a[i][i] / mass_scale;
+    }
+    normal_block::solve(&a, &q, count, &held)
 }
 
 impl Friction {

@@ -22,6 +22,7 @@ mod island_batch;
 pub mod joint_block;
 pub mod joint_solver;
 pub mod manifold;
+pub mod normal_block;
 pub mod pivoted_ldl;
 pub mod restitution;
 pub mod sleep;
