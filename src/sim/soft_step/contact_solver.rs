@@ -1,10 +1,10 @@
 //! Contact constraints of the soft-step solver. Each manifold point has a normal impulse,
 //! clamped non-negative, corrected softly when penetrating and speculative when apart, a
-//! manifold's points solved together ([`super::normal_block`]); friction
-//! acts per manifold, as Rapier's "simplified" model does: a tangential impulse in two
-//! directions at the patch's centre, clamped to the disc `mu` times the points' total normal
-//! impulse, and a twist impulse about the normal clamped to the same times the patch's radius
-//! (at least [`MIN_TWIST_RADIUS`]).
+//! manifold's points solved together ([`super::normal_block`]); friction acts per manifold, as
+//! Rapier's "simplified" model does: a tangential impulse in two directions at the patch's
+//! centre, clamped to the disc `mu` times the points' total normal impulse, and a twist impulse
+//! about the normal clamped to the same times the patch's radius (at least
+//! [`MIN_TWIST_RADIUS`]).
 //! One friction anchor per patch has no points to rock between (per-point friction lets a box
 //! on an incline walk down it a point at a time). Impulses are warm-started from the previous
 //! step: normal ones by feature key, friction by body pair.
