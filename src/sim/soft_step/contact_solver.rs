@@ -11,7 +11,7 @@
 
 use super::constraint_graph::{Colours, Shared, with_pair};
 use super::manifold::{GROUND, MAX_POINTS, Manifold, ManifoldPoint};
-use super::normal_block::{self, Column};
+use super::normal_block;
 use super::softness::Softness;
 use super::solver_body::SolverBody;
 use crate::sim::{buffer, parallel};
@@ -821,8 +821,8 @@ fn on_copies(
 }
 
 /// The normal impulses of one manifold's points: solved together ([`normal_block`]) where it
-/// has several, so the pass does not depend on the points' order; point after point where the
-/// block cannot be solved (a value not finite).
+/// has several, so the pass does not depend on the points' order; point after point where it
+/// has one, or the block cannot be solved (a value not finite).
 ///
 /// Inlined into the pass, as [`Friction::solve`] is: called, it took the normal and the
 /// softness through the stack, stored in 8-byte halves and loaded in 16-byte pieces, a
@@ -835,107 +835,142 @@ fn solve_normals(
     (soft, inv_h, pass): (Softness, f64, Pass),
     max_push: f64,
 ) {
+    let solve = (soft, inv_h, pass, max_push);
+    let solved = match points.len() {
+        2 => solve_block::<2>(c, points, (b1, b2), solve),
+        3 => solve_block::<3>(c, points, (b1, b2), solve),
+        4 => solve_block::<4>(c, points, (b1, b2), solve),
+        _ => false,
+    };
+    if solved {
+        return;
+    }
     let n = c.normal;
     let use_bias = pass == Pass::Soft;
-    let rows: [Direction; MAX_POINTS] = std::array::from_fn(|k| {
-        points
-            .get(k)
-            .map_or(Direction::default(), |p| p.along_normal(n))
-    });
-    // The normal velocities before any of this manifold's impulses (the approach speeds of
-    // points that touch together), each point's separation now and its soft coefficients.
+    // The normal velocities before any of this manifold's impulses: the approach speeds of
+    // points that touch together. (Each point's row is formed again below rather than kept:
+    // an array of four rows was zeroed by a call to memset in every manifold's pass.)
     let mut approach = [0.0; MAX_POINTS];
-    let mut terms = [(0.0, (0.0, 1.0, 0.0)); MAX_POINTS];
-    for (k, p) in points.iter().enumerate() {
-        approach[k] = rows[k].velocity(n, b1, b2);
-        let moved = b2.point_displacement(p.r2) - b1.point_displacement(p.r1);
-        let s = p.separation + n.dot(moved);
-        terms[k] = (s, soft.coefficients(s, inv_h, use_bias, max_push));
+    for (v, p) in approach.iter_mut().zip(points.iter()) {
+        *v = p.along_normal(n).velocity(n, b1, b2);
     }
-    let solved = match points.len() {
-        1 => None,
-        _ => solve_block(points, (b1, b2), (&rows, &approach, &terms)),
-    };
-    for (k, p) in points.iter_mut().enumerate() {
-        let (s, (bias, mass_scale, impulse_scale)) = terms[k];
-        let total = match solved {
-            Some(x) => x[k],
-            None => {
-                // The first point sees no impulse of this manifold yet: its approach.
-                let vn = if k == 0 {
-                    approach[k]
-                } else {
-                    rows[k].velocity(n, b1, b2)
-                };
-                let impulse =
-                    -p.normal_mass * mass_scale * (vn + bias) - impulse_scale * p.normal_impulse;
-                (p.normal_impulse + impulse).max(0.0)
-            }
+    for (k, (p, &approach)) in points.iter_mut().zip(&approach).enumerate() {
+        let row = p.along_normal(n);
+        let s = separation_now(p, n, b1, b2);
+        let (bias, mass_scale, impulse_scale) = soft.coefficients(s, inv_h, use_bias, max_push);
+        // The first point sees no impulse of this manifold yet: its approach, bit for bit.
+        let vn = match k {
+            0 => approach,
+            _ => row.velocity(n, b1, b2),
         };
-        let delta = total - p.normal_impulse;
-        p.normal_impulse = total;
-        p.max_normal_impulse = p.max_normal_impulse.max(total);
-        if total > 0.0 && approach[k] < 0.0 {
-            // Measured at the poses of this pass with the velocity there, where the energy is
-            // exactly invariant.
-            let a = c.normal_acceleration;
-            let synchronised = approach[k] - pass.to_synchronised(a, 1.0 / inv_h);
-            p.impact_energy = p.impact_energy.max(impact_energy(s, synchronised, a));
-        }
-        rows[k].apply(n, delta, b1, b2);
+        let impulse = -p.normal_mass * mass_scale * (vn + bias) - impulse_scale * p.normal_impulse;
+        let total = (p.normal_impulse + impulse).max(0.0);
+        settle_point(c, p, (&row, total), (s, approach, pass, inv_h), (b1, b2));
     }
 }
 
-/// A point's separation now and its soft coefficients (bias, mass scale, impulse scale).
-type PointTerms = (f64, (f64, f64, f64));
-
-/// The new accumulated normal impulses of a manifold's points solved together: each active
-/// point where Gauss-Seidel converges, `v_i + bias_i + c_i x_i = 0` (the soft row's fixed
-/// point, `c_i = impulse scale K_ii / mass scale`; zero for a rigid row), with `v` the normal
-/// velocities the impulses `x - x_old` leave through the manifold's matrix `K`. Per point:
-/// its normal row, its normal velocity now, its (separation, soft coefficients).
+/// Where a point of a manifold with normal `n` is now: its separation at the step's start
+/// moved by the bodies since.
 #[inline(always)]
-fn solve_block(
-    points: &[ContactPoint],
-    (b1, b2): (&SolverBody, &SolverBody),
-    (rows, velocity, terms): (&[Direction; MAX_POINTS], &Column, &[PointTerms; MAX_POINTS]),
-) -> Option<Column> {
-    let count = points.len();
-    let held: Column = std::array::from_fn(|k| points.get(k).map_or(0.0, |p| p.normal_impulse));
+fn separation_now(p: &ContactPoint, n: DVec3, b1: &SolverBody, b2: &SolverBody) -> f64 {
+    let moved = b2.point_displacement(p.r2) - b1.point_displacement(p.r1);
+    p.separation + n.dot(moved)
+}
+
+/// Point `p` (its normal row `row`) takes the accumulated impulse `total`: the change is
+/// applied, and an impact is recorded where the point touched after approaching at `approach`
+/// (at separation `s`, in `pass` of substeps of `1 / inv_h`).
+#[inline(always)]
+fn settle_point(
+    c: &ContactConstraint,
+    p: &mut ContactPoint,
+    (row, total): (&Direction, f64),
+    (s, approach, pass, inv_h): (f64, f64, Pass, f64),
+    (b1, b2): (&mut SolverBody, &mut SolverBody),
+) {
+    let delta = total - p.normal_impulse;
+    p.normal_impulse = total;
+    p.max_normal_impulse = p.max_normal_impulse.max(total);
+    if total > 0.0 && approach < 0.0 {
+        // Measured at the poses of this pass with the velocity there, where the energy is
+        // exactly invariant.
+        let a = c.normal_acceleration;
+        let synchronised = approach - pass.to_synchronised(a, 1.0 / inv_h);
+        p.impact_energy = p.impact_energy.max(impact_energy(s, synchronised, a));
+    }
+    row.apply(c.normal, delta, b1, b2);
+}
+
+/// The normal impulses of a manifold's `N` points solved together, if the block can be: each
+/// active point where Gauss-Seidel converges, `v_i + bias_i + c_i x_i = 0` (the soft row's
+/// fixed point, `c_i = impulse scale K_ii / mass scale`; zero for a rigid row), with `v` the
+/// normal velocities the impulses `x - x_old` leave through the manifold's matrix `K`. Returns
+/// whether it was (nothing is applied otherwise).
+#[inline(always)]
+fn solve_block<const N: usize>(
+    c: &ContactConstraint,
+    points: &mut [ContactPoint],
+    (b1, b2): (&mut SolverBody, &mut SolverBody),
+    (soft, inv_h, pass, max_push): (Softness, f64, Pass, f64),
+) -> bool {
+    let (n, use_bias) = (c.normal, pass == Pass::Soft);
+    let rows: [Direction; N] = std::array::from_fn(|k| points[k].along_normal(n));
+    let held: [f64; N] = std::array::from_fn(|k| points[k].normal_impulse);
+    let approach: [f64; N] = std::array::from_fn(|k| rows[k].velocity(n, b1, b2));
+    let separation: [f64; N] = std::array::from_fn(|k| separation_now(&points[k], n, b1, b2));
+    let coefficients: [(f64, f64, f64); N] =
+        std::array::from_fn(|k| soft.coefficients(separation[k], inv_h, use_bias, max_push));
     // Nothing held and nothing approaching: no impulse is the solution, without `K`.
-    let apart = |i: usize| held[i] == 0.0 && velocity[i] + terms[i].1.0 >= 0.0;
-    if (0..count).all(apart) {
-        return Some([0.0; MAX_POINTS]);
+    if (0..N).all(|i| held[i] == 0.0 && approach[i] + coefficients[i].0 >= 0.0) {
+        return true;
     }
-    let linear = b1.inverse_mass + b2.inverse_mass;
-    // A body impulses cannot turn (the ground, a sleeper) adds nothing angular to `K`: half
-    // of it spared on a pile's ground contacts.
-    let turns = |b: &SolverBody| b.inverse_inertia != DMat3::ZERO;
-    let (turns1, turns2) = (turns(b1), turns(b2));
-    let mut a: normal_block::Block = [[0.0; MAX_POINTS]; MAX_POINTS];
-    for i in 0..count {
-        for j in i..count {
-            let mut k = linear;
-            if turns1 {
-                k += rows[i].ang1.dot(rows[j].inv1);
-            }
-            if turns2 {
-                k += rows[i].ang2.dot(rows[j].inv2);
-            }
-            a[i][j] = k;
-            a[j][i] = k;
-        }
-    }
-    let mut q = [0.0; MAX_POINTS];
-    for i in 0..count {
-        let (_, (bias, mass_scale, impulse_scale)) = terms[i];
-        q[i] = velocity[i] + bias - (0..count).map(|j| a[i][j] * held[j]).sum::<f64>();
+    let mut a = coupling(&rows, (b1, b2));
+    let mut q = [0.0; N];
+    for i in 0..N {
+        let (bias, mass_scale, _) = coefficients[i];
         if mass_scale.is_nan() || mass_scale <= 0.0 {
-            return None;
+            return false;
         }
+        q[i] = approach[i] + bias - (0..N).map(|j| a[i][j] * held[j]).sum::<f64>();
+    }
+    for (i, (_, mass_scale, impulse_scale)) in coefficients.into_iter().enumerate() {
         a[i][i] += impulse_scale * a[i][i] / mass_scale;
     }
-    normal_block::solve(&a, &q, count, &held)
+    let Some(x) = normal_block::solve(&a, &q, &held) else {
+        return false;
+    };
+    for (k, p) in points.iter_mut().enumerate().take(N) {
+        let at = (separation[k], approach[k], pass, inv_h);
+        settle_point(c, p, (&rows[k], x[k]), at, (b1, b2));
+    }
+    true
+}
+/// The matrix `K` of a manifold's normal rows `rows`: the velocity along row `i` a unit impulse
+/// along row `j` gives.
+#[inline(always)]
+fn coupling<const N: usize>(
+    rows: &[Direction; N],
+    (b1, b2): (&SolverBody, &SolverBody),
+) -> [[f64; N]; N] {
+    let linear = b1.inverse_mass + b2.inverse_mass;
+    // A body impulses cannot turn (the ground, a sleeper) adds nothing angular: half of `K`
+    // spared on a pile's ground contacts.
+    let turns = |b: &SolverBody| b.inverse_inertia != DMat3::ZERO;
+    let (turns1, turns2) = (turns(b1), turns(b2));
+    let mut k = [[0.0; N]; N];
+    for i in 0..N {
+        for j in i..N {
+            let mut v = linear;
+            if turns1 {
+                v += rows[i].ang1.dot(rows[j].inv1);
+            }
+            if turns2 {
+                v += rows[i].ang2.dot(rows[j].inv2);
+            }
+            (k[i][j], k[j][i]) = (v, v);
+        }
+    }
+    k
 }
 
 impl Friction {

@@ -11,16 +11,8 @@
 //! symmetric and positive semi-definite. Rigid rows of four points in one plane are dependent
 //! (`A` has rank three), their impulses not unique, only the velocities they leave: every row
 //! is given a compliance of [`COMPLIANCE`] of its diagonal, which makes `A` definite and the
-//! solution unique (for consistent rows, the least-norm one) and moves the velocities by that
+//! solution unique (for consistent rows, near the least-norm one) and moves the velocities by that
 //! fraction of an impulse's effect.
-
-use super::manifold::MAX_POINTS;
-
-/// A manifold's matrix, rows `0..n` of it used.
-pub type Block = [[f64; MAX_POINTS]; MAX_POINTS];
-
-/// Impulses or velocities of a manifold's points, `0..n` of them used.
-pub type Column = [f64; MAX_POINTS];
 
 /// Compliance added to every row, relative to its diagonal.
 pub const COMPLIANCE: f64 = 1e-9;
@@ -28,46 +20,33 @@ pub const COMPLIANCE: f64 = 1e-9;
 /// Relative slack of the complementarity checks: what rounding leaves of `w` and `x`.
 const SLACK: f64 = 1e-9;
 
-/// Solves the problem of the first `n` rows of `a` and `q` (n <= [`MAX_POINTS`]); `held`: the
-/// impulses the points hold now. The active sets are tried in a fixed order, those most often
-/// right first: the points holding an impulse, none, all, then the rest from the largest down.
-/// None if no set passes (a value not finite, or `A` not semi-definite): the caller then
-/// solves point after point.
-pub fn solve(a: &Block, q: &Column, n: usize, held: &Column) -> Option<Column> {
-    let widened = |x: &[f64]| std::array::from_fn(|i| x.get(i).copied().unwrap_or(0.0));
-    match n {
-        2 => solve_rows::<2>(a, q, held).map(|x| widened(&x)),
-        3 => solve_rows::<3>(a, q, held).map(|x| widened(&x)),
-        4 => solve_rows::<4>(a, q, held),
-        _ => None,
+/// Solves the problem of `N` rows (at most 5: a manifold has 4); `held`: the impulses the
+/// points hold now. The active sets are tried in a fixed order, those most often right first:
+/// the points holding an impulse, none, all, then the rest from the largest down. A system of
+/// fixed size, whose loops the compiler unrolls. None if no set passes (a value not finite, or
+/// `A` not semi-definite): the caller then solves point after point.
+pub fn solve<const N: usize>(a: &[[f64; N]; N], q: &[f64; N], held: &[f64; N]) -> Option<[f64; N]> {
+    const { assert!(N <= 5) };
+    let all = ((1u16 << N) - 1) as u8;
+    if !a.iter().flatten().chain(q).all(|v| v.is_finite()) {
+        return None;
     }
-}
-
-/// [`solve`] for `N` rows (a system of fixed size, whose loops the compiler unrolls: at the
-/// size of the largest, two-point manifolds, half of a pile's, cost as much as four-point
-/// ones).
-fn solve_rows<const N: usize>(a: &Block, q: &Column, held: &Column) -> Option<[f64; N]> {
-    let all = (1u8 << N) - 1;
-    let mut a: [[f64; N]; N] = std::array::from_fn(|i| std::array::from_fn(|j| a[i][j]));
+    let mut a = *a;
     for (i, row) in a.iter_mut().enumerate() {
         row[i] *= 1.0 + COMPLIANCE;
-    }
-    let q: [f64; N] = std::array::from_fn(|i| q[i]);
-    if !a.iter().flatten().chain(&q).all(|v| v.is_finite()) {
-        return None;
     }
     let scale = q.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     let holding = (0..N).fold(0u8, |set, i| set | (((held[i] > 0.0) as u8) << i));
     let by_size = (1..N as u32)
         .rev()
         .flat_map(move |size| (1..all).filter(move |s| s.count_ones() == size));
+    // A bit per active set tried (16 for four rows).
     let mut tried = 0u32;
     for set in [holding, 0, all].into_iter().chain(by_size) {
-        if tried & (1 << set) == 0 {
-            tried |= 1 << set;
-            if let Some(x) = try_set(&a, &q, set, scale) {
-                return Some(x);
-            }
+        let first = tried & (1 << set) == 0;
+        tried |= 1 << set;
+        if first && let Some(x) = try_set(&a, q, set, scale) {
+            return Some(x);
         }
     }
     None
@@ -152,6 +131,28 @@ mod tests {
     use crate::sim::rng::Rng;
     use glam::DVec3;
 
+    const MAX_POINTS: usize = 4;
+    type Block = [[f64; MAX_POINTS]; MAX_POINTS];
+    type Column = [f64; MAX_POINTS];
+
+    /// [`solve`] on the first `n` rows of a system of four.
+    fn solve_n(a: &Block, q: &Column, n: usize, held: &Column) -> Option<Column> {
+        fn first<const N: usize>(a: &Block, q: &Column, held: &Column) -> Option<Column> {
+            let a: [[f64; N]; N] = std::array::from_fn(|i| std::array::from_fn(|j| a[i][j]));
+            let (q, held): ([f64; N], [f64; N]) = (
+                std::array::from_fn(|i| q[i]),
+                std::array::from_fn(|i| held[i]),
+            );
+            let x = solve(&a, &q, &held)?;
+            Some(std::array::from_fn(|i| x.get(i).copied().unwrap_or(0.0)))
+        }
+        match n {
+            2 => first::<2>(a, q, held),
+            3 => first::<3>(a, q, held),
+            _ => first::<4>(a, q, held),
+        }
+    }
+
     /// `J M^-1 J^T` of the normal rows at `points` (normal +y) on a body of unit mass and
     /// inverse inertia `inertia` (diagonal) against the ground, plus `compliance` of each
     /// diagonal: the matrix the soft step forms for a ground manifold.
@@ -203,7 +204,7 @@ mod tests {
         for case in 0..300 {
             let n = 2 + case % 3;
             let (a, q) = random_problem(&mut rng, n, 0.05);
-            let x = solve(&a, &q, n, &[0.0; MAX_POINTS]).expect("solved");
+            let x = solve_n(&a, &q, n, &[0.0; MAX_POINTS]).expect("solved");
             let expected = converged_gauss_seidel(&a, &q, n);
             for i in 0..n {
                 assert!(
@@ -239,8 +240,8 @@ mod tests {
                     b[i][j] = a[rev(i)][rev(j)];
                 }
             }
-            let x = solve(&a, &q, n, &[0.0; MAX_POINTS]).expect("solved");
-            let y = solve(&b, &p, n, &[0.0; MAX_POINTS]).expect("solved");
+            let x = solve_n(&a, &q, n, &[0.0; MAX_POINTS]).expect("solved");
+            let y = solve_n(&b, &p, n, &[0.0; MAX_POINTS]).expect("solved");
             let largest = x.iter().fold(1.0f64, |m, v| m.max(v.abs()));
             for i in 0..n {
                 assert!(
@@ -261,7 +262,7 @@ mod tests {
         let a = ground_block(&corners, DVec3::new(0.6, 0.3, 0.8), 0.0);
         // The velocities of a body sinking at 1 unit/s and turning about x and z.
         let q = corners.map(|r| -1.0 + DVec3::new(0.3, 0.0, -0.2).cross(r).y);
-        let x = solve(&a, &q, 4, &[0.0; MAX_POINTS]).expect("solved");
+        let x = solve_n(&a, &q, 4, &[0.0; MAX_POINTS]).expect("solved");
         let expected = converged_gauss_seidel(&a, &q, 4);
         let moment = |x: &Column| -> (f64, DVec3) {
             let force: f64 = x.iter().sum();
@@ -282,9 +283,9 @@ mod tests {
     #[test]
     fn values_not_finite_are_refused() {
         let a = ground_block(&[DVec3::X, DVec3::Z], DVec3::ONE, 0.05);
-        assert!(solve(&a, &[f64::NAN, -1.0, 0.0, 0.0], 2, &[0.0; MAX_POINTS]).is_none());
+        assert!(solve_n(&a, &[f64::NAN, -1.0, 0.0, 0.0], 2, &[0.0; MAX_POINTS]).is_none());
         let mut bad = a;
         (bad[0][1], bad[1][0]) = (f64::INFINITY, f64::INFINITY);
-        assert!(solve(&bad, &[-1.0, -1.0, 0.0, 0.0], 2, &[0.0; MAX_POINTS]).is_none());
+        assert!(solve_n(&bad, &[-1.0, -1.0, 0.0, 0.0], 2, &[0.0; MAX_POINTS]).is_none());
     }
 }
