@@ -359,9 +359,9 @@ fn a_box_starting_to_slide_down_an_incline_does_not_fall_asleep() {
 }
 
 /// A box dropped onto a box resting on the ground bounces back about as off a rigid support,
-/// to between half and a quarter more than `e^2` of its drop (e = 0.5, dropped 2 units: 0.29): up to stop 64 the
-/// box below, driven into the ground, bounced too, and both bounces were counted against the
-/// one impact's energy (it went back up to 0.47 of its drop).
+/// to between half and a quarter more than `e^2` of its drop (e = 0.5, dropped 2 units: 0.29):
+/// up to stop 64 the box below, driven into the ground, bounced too, and both bounces were
+/// counted against the one impact's energy (it went back up to 0.47 of its drop).
 #[test]
 fn a_box_dropped_on_a_resting_box_bounces_as_off_a_support() {
     let e: f64 = 0.5;
