@@ -822,7 +822,7 @@ fn on_copies(
 
 /// The normal impulses of one manifold's points: solved together ([`normal_block`]) where it
 /// has several, so the pass does not depend on the points' order; point after point where it
-/// has one, or the block cannot be solved (a value not finite).
+/// has one, or the block cannot be solved (a value not finite, a mass scale not positive).
 ///
 /// Inlined into the pass, as [`Friction::solve`] is: called, it took the normal and the
 /// softness through the stack, stored in 8-byte halves and loaded in 16-byte pieces, a
@@ -842,9 +842,19 @@ fn solve_normals(
         4 => solve_block::<4>(c, points, (b1, b2), solve),
         _ => false,
     };
-    if solved {
-        return;
+    if !solved {
+        solve_point_by_point(c, points, (b1, b2), solve);
     }
+}
+
+/// The normal impulses of one manifold's points, one Gauss-Seidel pass point after point.
+#[inline(always)]
+fn solve_point_by_point(
+    c: &ContactConstraint,
+    points: &mut [ContactPoint],
+    (b1, b2): (&mut SolverBody, &mut SolverBody),
+    (soft, inv_h, pass, max_push): (Softness, f64, Pass, f64),
+) {
     let n = c.normal;
     let use_bias = pass == Pass::Soft;
     // The normal velocities before any of this manifold's impulses: the approach speeds of
@@ -903,7 +913,8 @@ fn settle_point(
 
 /// The normal impulses of a manifold's `N` points solved together, if the block can be: each
 /// active point where Gauss-Seidel converges, `v_i + bias_i + c_i x_i = 0` (the soft row's
-/// fixed point, `c_i = impulse scale K_ii / mass scale`; zero for a rigid row), with `v` the
+/// fixed point, `c_i = impulse scale K_ii / mass scale`; for a rigid row
+/// [`normal_block::COMPLIANCE`] `K_ii`), with `v` the
 /// normal velocities the impulses `x - x_old` leave through the manifold's matrix `K`. Returns
 /// whether it was (nothing is applied otherwise).
 #[inline(always)]
@@ -933,8 +944,9 @@ fn solve_block<const N: usize>(
         }
         q[i] = approach[i] + bias - (0..N).map(|j| a[i][j] * held[j]).sum::<f64>();
     }
+    // The soft rows' compliance; the rigid rows' least, which makes a flat face's `K` definite.
     for (i, (_, mass_scale, impulse_scale)) in coefficients.into_iter().enumerate() {
-        a[i][i] += impulse_scale * a[i][i] / mass_scale;
+        a[i][i] += (impulse_scale / mass_scale).max(normal_block::COMPLIANCE) * a[i][i];
     }
     let Some(x) = normal_block::solve(&a, &q, &held) else {
         return false;
@@ -945,6 +957,7 @@ fn solve_block<const N: usize>(
     }
     true
 }
+
 /// The matrix `K` of a manifold's normal rows `rows`: the velocity along row `i` a unit impulse
 /// along row `j` gives.
 #[inline(always)]
@@ -1034,6 +1047,71 @@ impl Friction {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A box landing tilted on the ground, its four bottom corners touching (two of them
+    /// penetrating: soft rows; two still apart: rigid, speculative), holding impulses from
+    /// before: one block solve gives the velocities and impulses that the pass point after
+    /// point converges to when repeated (an independent computation of the same fixed point).
+    #[test]
+    fn the_block_gives_what_repeated_point_passes_converge_to() {
+        use crate::scene::assets;
+        use crate::sim::body::RigidBody;
+        use crate::sim::shape::Shape;
+        let shape = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(1.0, 0.5, 0.75))).unwrap();
+        let tilt = DQuat::from_rotation_z(0.01) * DQuat::from_rotation_x(-0.02);
+        let mut body = RigidBody::on_shape(&shape, 0, 1.0, false, DVec3::new(0.3, 0.5, -0.2), tilt);
+        body.linear_velocity = DVec3::new(0.4, -2.0, 0.1);
+        body.angular_velocity = DVec3::new(0.7, -0.3, 1.1);
+        let corners = [(-1.0, -0.75), (1.0, -0.75), (1.0, 0.75), (-1.0, 0.75)];
+        let points: Vec<ManifoldPoint> = corners
+            .iter()
+            .enumerate()
+            .map(|(k, &(x, z))| {
+                let at = body.position + tilt * DVec3::new(x, -0.5, z);
+                ManifoldPoint {
+                    point: at,
+                    separation: at.y,
+                    key: k as u64,
+                }
+            })
+            .collect();
+        assert_eq!(points.iter().filter(|p| p.separation < 0.0).count(), 2);
+        let h = 0.005;
+        let params = ContactParams {
+            softness: Softness::new(30.0, 10.0, h),
+            static_softness: Softness::new(37.5, 10.0, h),
+            friction: 0.5,
+            gravity: DVec3::new(0.0, -9.8, 0.0),
+        };
+        let bodies = [SolverBody::new(&body), SolverBody::STATIC];
+        let manifold = Manifold::new(GROUND, 0, DVec3::Y, &points);
+        let (mut constraints, mut contact_points) = (Vec::new(), Vec::new());
+        let poses = [(body.position, body.orientation)];
+        let cache = ContactCache::default();
+        let contacts = (&mut constraints, &mut contact_points);
+        prepare(&[manifold], &poses, &bodies, &cache, &params, contacts);
+        for (p, held) in contact_points.iter_mut().zip([0.3, 0.0, 0.1, 0.05]) {
+            p.normal_impulse = held;
+        }
+        let c = constraints[0];
+        let solve = (params.static_softness, 1.0 / h, Pass::Soft, 3.0);
+        let (mut block, mut repeated) = (contact_points.clone(), contact_points.clone());
+        let (mut b1, mut b2) = (bodies[1], bodies[0]);
+        assert!(solve_block::<4>(&c, &mut block, (&mut b1, &mut b2), solve));
+        let (mut r1, mut r2) = (bodies[1], bodies[0]);
+        for _ in 0..20_000 {
+            solve_point_by_point(&c, &mut repeated, (&mut r1, &mut r2), solve);
+        }
+        let impulses = |p: &[ContactPoint]| p.iter().map(|p| p.normal_impulse).collect::<Vec<_>>();
+        let (x, y) = (impulses(&block), impulses(&repeated));
+        assert!(x.iter().any(|&v| v > 0.1), "{x:?}");
+        // To the rigid rows' compliance, 1e-6 of their diagonal (3e-6 here).
+        for k in 0..4 {
+            assert!((x[k] - y[k]).abs() < 2e-5, "{x:?} against {y:?}");
+        }
+        assert!((b2.linear_velocity - r2.linear_velocity).length() < 2e-5);
+        assert!((b2.angular_velocity - r2.angular_velocity).length() < 2e-5);
+    }
 
     #[test]
     fn impact_energy_is_invariant_in_free_flight() {
