@@ -914,9 +914,9 @@ fn settle_point(
 /// The normal impulses of a manifold's `N` points solved together, if the block can be: each
 /// active point where Gauss-Seidel converges, `v_i + bias_i + c_i x_i = 0` (the soft row's
 /// fixed point, `c_i = impulse scale K_ii / mass scale`; for a rigid row
-/// [`normal_block::COMPLIANCE`] `K_ii`), with `v` the
-/// normal velocities the impulses `x - x_old` leave through the manifold's matrix `K`. Returns
-/// whether it was (nothing is applied otherwise).
+/// [`normal_block::COMPLIANCE`] `K_ii`), with `v` the normal velocities the impulses
+/// `x - x_old` leave through the manifold's matrix `K`. Returns whether it was (nothing is
+/// applied otherwise).
 #[inline(always)]
 fn solve_block<const N: usize>(
     c: &ContactConstraint,
