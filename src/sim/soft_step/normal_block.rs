@@ -178,11 +178,32 @@ mod tests {
         let mut x = [0.0; MAX_POINTS];
         for _ in 0..200_000 {
             for i in 0..n {
-                let w = q[i] + (0..n).map(|j| a[i][j] * x[j]).sum::<f64>();
+                let w = velocities(&a, &q, &x, n)[i];
                 x[i] = (x[i] - w / a[i][i]).max(0.0);
             }
         }
         x
+    }
+
+    /// `w = A x + q`: the velocities the impulses `x` leave, first `n` rows.
+    fn velocities(a: &Block, q: &Column, x: &Column, n: usize) -> Column {
+        std::array::from_fn(|i| match i < n {
+            true => q[i] + (0..n).map(|j| a[i][j] * x[j]).sum::<f64>(),
+            false => 0.0,
+        })
+    }
+
+    /// The four bottom corners of a 2 x 1 x 2 box, from its centre.
+    fn bottom_corners() -> [DVec3; 4] {
+        [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)].map(|(x, z)| DVec3::new(x, -0.5, z))
+    }
+
+    /// The impulses `x` of four rigid rows hold their load: every point still (to `tolerance`),
+    /// none pulling.
+    fn assert_holds(a: &Block, q: &Column, x: &Column, tolerance: f64) {
+        let w = velocities(a, q, x, 4);
+        let holds = (0..4).all(|i| x[i] >= 0.0 && w[i].abs() < tolerance);
+        assert!(holds, "{x:?}, w {w:?}");
     }
 
     fn random_problem(rng: &mut Rng, n: usize, compliance: f64) -> (Block, Column) {
@@ -215,7 +236,7 @@ mod tests {
                     (x[i] - expected[i]).abs() < 1e-7 * (1.0 + expected[i].abs()),
                     "case {case}: {x:?} against {expected:?}"
                 );
-                let w = q[i] + (0..n).map(|j| a[i][j] * x[j]).sum::<f64>();
+                let w = velocities(&a, &q, &x, n)[i];
                 let slack = 1e-9 * (1.0 + x[i]);
                 assert!(
                     x[i] >= 0.0 && w >= -slack && (x[i] * w).abs() < slack,
@@ -260,8 +281,7 @@ mod tests {
     /// they carry the load's force and moment as converged Gauss-Seidel's do.
     #[test]
     fn dependent_rigid_rows_hold_an_off_centre_load() {
-        let corners = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
-            .map(|(x, z)| DVec3::new(x, -0.5, z));
+        let corners = bottom_corners();
         let a = ground_block(&corners, DVec3::new(0.6, 0.3, 0.8), COMPLIANCE);
         // The velocities of a body sinking at 1 unit/s and turning about x and z.
         let q = corners.map(|r| -1.0 + DVec3::new(0.3, 0.0, -0.2).cross(r).y);
@@ -277,10 +297,7 @@ mod tests {
             (f - g).abs() < 1e-6 * g && (t - u).length() < 1e-6 * g,
             "{x:?} {expected:?}"
         );
-        for i in 0..4 {
-            let w = q[i] + (0..4).map(|j| a[i][j] * x[j]).sum::<f64>();
-            assert!(x[i] >= 0.0 && w.abs() < 1e-6, "{i}: {x:?}, w {w}");
-        }
+        assert_holds(&a, &q, &x, 1e-6);
     }
 
     /// Rigid rows of four corners (dependent) under a load they can hold in many ways: the
@@ -290,8 +307,7 @@ mod tests {
     /// again after other held impulses.
     #[test]
     fn dependent_rigid_rows_give_one_answer_in_any_order_and_from_any_start() {
-        let corners = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
-            .map(|(x, z)| DVec3::new(x, -0.5, z));
+        let corners = bottom_corners();
         let inertia = DVec3::new(0.6, 0.3, 0.8);
         let (k, a) = (
             ground_block(&corners, inertia, 0.0),
@@ -319,11 +335,7 @@ mod tests {
                 );
             }
         }
-        // The one answer holds the load: every point still, none pulling.
-        for i in 0..4 {
-            let w = q[i] + (0..4).map(|j| a[i][j] * reference[j]).sum::<f64>();
-            assert!(reference[i] >= 0.0 && w.abs() < 1e-5, "{reference:?}");
-        }
+        assert_holds(&a, &q, &reference, 1e-5);
     }
 
     #[test]
