@@ -935,15 +935,13 @@ fn solve_block<const N: usize>(
     if (0..N).all(|i| held[i] == 0.0 && approach[i] + coefficients[i].0 >= 0.0) {
         return true;
     }
-    let mut a = coupling(&rows, (b1, b2));
-    let mut q = [0.0; N];
-    for i in 0..N {
-        let (bias, mass_scale, _) = coefficients[i];
-        if mass_scale.is_nan() || mass_scale <= 0.0 {
-            return false;
-        }
-        q[i] = approach[i] + bias - (0..N).map(|j| a[i][j] * held[j]).sum::<f64>();
+    if coefficients.iter().any(|c| c.1.is_nan() || c.1 <= 0.0) {
+        return false;
     }
+    let mut a = coupling(&rows, (b1, b2));
+    let q: [f64; N] = std::array::from_fn(|i| {
+        approach[i] + coefficients[i].0 - (0..N).map(|j| a[i][j] * held[j]).sum::<f64>()
+    });
     // The soft rows' compliance; the rigid rows' least, which makes a flat face's `K` definite.
     for (i, (_, mass_scale, impulse_scale)) in coefficients.into_iter().enumerate() {
         a[i][i] += (impulse_scale / mass_scale).max(normal_block::COMPLIANCE) * a[i][i];

@@ -39,7 +39,9 @@ pub fn solve<const N: usize>(a: &[[f64; N]; N], q: &[f64; N], held: &[f64; N]) -
     if !a.iter().flatten().chain(q).all(|v| v.is_finite()) {
         return None;
     }
+    // What the checks' slack is relative to: the largest velocity and diagonal.
     let scale = q.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let diagonal = (0..N).fold(0.0f64, |m, i| m.max(a[i][i]));
     let holding = (0..N).fold(0u8, |set, i| set | (((held[i] > 0.0) as u8) << i));
     let by_size = (1..N as u32)
         .rev()
@@ -49,7 +51,7 @@ pub fn solve<const N: usize>(a: &[[f64; N]; N], q: &[f64; N], held: &[f64; N]) -
     for set in [holding, 0, all].into_iter().chain(by_size) {
         let first = tried & (1 << set) == 0;
         tried |= 1 << set;
-        if first && let Some(x) = try_set(a, q, set, scale) {
+        if first && let Some(x) = try_set(a, q, set, (scale, diagonal)) {
             return Some(x);
         }
     }
@@ -62,7 +64,7 @@ fn try_set<const N: usize>(
     a: &[[f64; N]; N],
     q: &[f64; N],
     set: u8,
-    scale: f64,
+    (scale, diagonal): (f64, f64),
 ) -> Option<[f64; N]> {
     let active = |i: usize| set & (1 << i) != 0;
     // The set's rows, the others made identity rows with zero impulse: one system of `N`.
@@ -75,7 +77,6 @@ fn try_set<const N: usize>(
     let b: [f64; N] = std::array::from_fn(|i| if active(i) { -q[i] } else { 0.0 });
     let x = solve_definite(&m, &b)?;
     let largest = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let diagonal = (0..N).fold(0.0f64, |m, i| m.max(a[i][i]));
     let slack = W_SLACK * (scale + diagonal * largest);
     for i in 0..N {
         let fits = if active(i) {
@@ -91,7 +92,9 @@ fn try_set<const N: usize>(
 }
 
 /// `M x = b` for `M` symmetric positive definite, by `L D L^T`; None if a pivot is not
-/// positive or the result not finite.
+/// positive or the result not finite. The joint groups' `L D L^T` ([`super::envelope`]) works
+/// on slices and a growable inverse diagonal; this one, of fixed size on the stack, runs for
+/// every manifold in every pass.
 fn solve_definite<const N: usize>(m: &[[f64; N]; N], b: &[f64; N]) -> Option<[f64; N]> {
     let mut l = [[0.0; N]; N];
     let mut d = [0.0; N];
