@@ -358,10 +358,11 @@ fn a_box_starting_to_slide_down_an_incline_does_not_fall_asleep() {
     assert!(world.bodies[1].asleep && held.abs() < 1e-3, "{held}");
 }
 
-/// A box dropped onto a box resting on the ground bounces back about as off a rigid support,
-/// to between half and a quarter more than `e^2` of its drop (e = 0.5, dropped 2 units: 0.29):
-/// up to stop 64 the box below, driven into the ground, bounced too, and both bounces were
-/// counted against the one impact's energy (it went back up to 0.47 of its drop).
+/// A box dropped 2 units onto a box resting on the ground at e = 0.5 bounces back as off a rigid
+/// support, to within a tenth below and a twentieth above `e^2` of its drop (0.245): up to
+/// stop 64 the box below, driven into the ground, bounced too, and both bounces were counted
+/// against the one impact's energy (0.47 of its drop); up to stop 66 the cap on that let the
+/// box below, pressed into the ground, still push back (0.29).
 #[test]
 fn a_box_dropped_on_a_resting_box_bounces_as_off_a_support() {
     let e: f64 = 0.5;
@@ -387,21 +388,23 @@ fn a_box_dropped_on_a_resting_box_bounces_as_off_a_support() {
     }
     let ratio = (apex - rest) / drop;
     assert!(
-        bounced && ratio < 1.25 * e * e && ratio > 0.5 * e * e,
+        bounced && ratio < 1.05 * e * e && ratio > 0.9 * e * e,
         "bounced back to {ratio} of its drop (e^2 = {})",
         e * e
     );
 }
 
-/// At e = 1 and e = 0.5 a box dropped 24 units onto a box resting on the ground, or onto the
-/// top of a stack of two, goes back up to `e^2` of its drop as off a rigid support, and the
-/// boxes below stay where they are: the restitution pass holds the struck box up by the points
-/// that held it in the substeps ([`tumble::sim::soft_step::restitution`]'s supports). Until
-/// stop 66 the box on one box went back to 0.91 and 0.23 of its drop and threw the box below
-/// 2.1 and 0.5 units up; on the stack the middle box jumped 2.9 units.
+/// At e = 1 and e = 0.5, without friction and with the preset's, a box dropped 24 units onto a
+/// box resting on the ground, or onto the top of a stack of two, goes back up to `e^2` of its
+/// drop as off a rigid support, and the boxes below stay where they are: the restitution pass
+/// holds the struck box up by the points that held it in the substeps
+/// ([`tumble::sim::soft_step::restitution`]'s supports). Until stop 66 the box on one box went
+/// back to 0.91 and 0.23 of its drop and threw the box below 2.1 and 0.5 units up; on the
+/// stack the middle box jumped 2.9 units.
 #[test]
 fn a_box_dropped_on_resting_boxes_bounces_as_off_a_rigid_support() {
-    for (below, e) in [(1, 1.0), (1, 0.5), (2, 1.0), (2, 0.5)] {
+    let cases = [(1, 1.0), (1, 0.5), (2, 1.0), (2, 0.5)];
+    for ((below, e), friction) in cases.into_iter().flat_map(|c| [(c, 0.0), (c, 0.5)]) {
         let shape = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(6.0, 3.0, 4.0))).unwrap();
         let at = |y: f64| RigidBody::on_shape(&shape, 0, 1.0, false, DVec3::Y * y, DQuat::IDENTITY);
         let mut bodies: Vec<RigidBody> = (0..below).map(|k| at(3.0 + 6.0 * k as f64)).collect();
@@ -411,13 +414,15 @@ fn a_box_dropped_on_resting_boxes_bounces_as_off_a_rigid_support() {
             vec!["box".into()],
             bodies,
             vec![],
-            frictionless(e),
+            dropping(e, friction),
         );
         let (ratio, moved) = bounce_off(world, below);
         let least = if below == 1 { 0.97 } else { 0.9 };
+        // (The boxes below are pressed into their soft contacts by the impact, a few hundredths.)
         assert!(
-            ratio > least * e * e && ratio < 1.02 * e * e && moved < 0.06,
-            "{below} below, e = {e}: back up to {ratio} of the drop, a box below moved {moved}"
+            ratio > least * e * e && ratio < 1.02 * e * e && moved < 0.1,
+            "{below} below, e = {e}, friction {friction}: back up to {ratio} of the drop, a \
+             box below moved {moved}"
         );
     }
 }
@@ -425,17 +430,19 @@ fn a_box_dropped_on_resting_boxes_bounces_as_off_a_rigid_support() {
 /// A box dropped 24 units onto a box hung from two fixed boxes by four rods (both bounds at
 /// the length) or four ropes (up to the length) goes back up to `e^2` of its drop as off a
 /// rigid support, and the hung box stays: the restitution pass holds the distance constraints
-/// rigid as it bounces. Until stop 66 it went back to 0.38 and 0.14 of its drop on rods and
-/// 0.35 and 0.12 on ropes at e = 1 and 0.5; the ropes, which catch the box only once their
-/// slack is taken up, still give back a little less.
+/// rigid as it bounces, without friction and with the preset's. Until stop 66 it went back to
+/// 0.38 and 0.14 of its drop on rods and 0.35 and 0.12 on ropes at e = 1 and 0.5; the ropes,
+/// slack by a hair when the step ends, let the hung box sink until they catch it in the next
+/// step, and give back 0.94 and 0.89 of `e^2`.
 #[test]
 fn a_box_dropped_on_a_box_hung_by_rods_or_ropes_bounces_as_off_a_rigid_support() {
-    for (lower, e, least) in [
+    let cases = [
         (1.0, 1.0, 0.95),
         (1.0, 0.5, 0.95),
         (0.0, 1.0, 0.85),
         (0.0, 0.5, 0.85),
-    ] {
+    ];
+    for ((lower, e, least), friction) in cases.into_iter().flat_map(|c| [(c, 0.0), (c, 0.5)]) {
         let shape = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(6.0, 3.0, 4.0))).unwrap();
         let at = |x: f64, y: f64, fixed: bool| {
             RigidBody::on_shape(
@@ -474,21 +481,22 @@ fn a_box_dropped_on_a_box_hung_by_rods_or_ropes_bounces_as_off_a_rigid_support()
             vec!["box".into()],
             bodies,
             constraints,
-            frictionless(e),
+            dropping(e, friction),
         );
         let (ratio, moved) = bounce_off(world, 3);
         assert!(
             ratio > least * e * e && ratio < 1.02 * e * e && moved < 0.02,
-            "lower bound {lower}, e = {e}: back up to {ratio} of the drop, the hung box moved {moved}"
+            "lower bound {lower}, e = {e}, friction {friction}: back up to {ratio} of the drop, \
+             the hung box moved {moved}"
         );
     }
 }
 
-/// The preset without friction or sleeping, at restitution `e` and dt 0.02.
-fn frictionless(e: f64) -> Settings {
+/// The preset without sleeping, at restitution `e`, `friction` and dt 0.02.
+fn dropping(e: f64, friction: f64) -> Settings {
     Settings {
         restitution: e,
-        friction: 0.0,
+        friction,
         ..awake(0.02)
     }
 }

@@ -119,7 +119,7 @@ impl Colours {
                 f(&mut slice[i]);
             }
         };
-        self.run(|k| runs[k].len(), each);
+        self.run(|k| runs[k].len(), PARALLEL_PASS, each);
     }
 
     /// [`Colours::for_each`] on the constraints at `selected` (strictly increasing indices)
@@ -128,6 +128,18 @@ impl Colours {
         &self,
         constraints: &mut [C],
         selected: &[u32],
+        ahead: impl Fn(&C) + Sync,
+        f: impl Fn(&mut C) + Sync,
+    ) {
+        self.for_each_selected_from(constraints, (selected, PARALLEL_PASS), ahead, f);
+    }
+
+    /// [`Colours::for_each_selected`], on all threads only from `parallel_from` constraints up
+    /// (a pass lighter per constraint than a solve pays for the barriers later).
+    pub fn for_each_selected_from<C: Send>(
+        &self,
+        constraints: &mut [C],
+        (selected, parallel_from): (&[u32], usize),
         ahead: impl Fn(&C) + Sync,
         f: impl Fn(&mut C) + Sync,
     ) {
@@ -151,7 +163,7 @@ impl Colours {
                 f(unsafe { shared.get_mut(i as usize) });
             }
         };
-        self.run(|k| bounds[k + 1] - bounds[k], each);
+        self.run(|k| bounds[k + 1] - bounds[k], parallel_from, each);
     }
 
     /// Calls `each(k, places)` over the places `0..len(k)` of every run `k`, run after run. With
@@ -167,7 +179,12 @@ impl Colours {
     /// colour of a pile of a few hundred bodies; with the broadcast the soft step's solve stage
     /// of pile-200 (dt 0.02, 500 steps) takes 0.20 against 0.26 ms a step on two threads, and
     /// pile-1000's 0.95 against 1.28.
-    fn run(&self, len: impl Fn(usize) -> usize + Sync, each: impl Fn(usize, Range<usize>) + Sync) {
+    fn run(
+        &self,
+        len: impl Fn(usize) -> usize + Sync,
+        parallel_from: usize,
+        each: impl Fn(usize, Range<usize>) + Sync,
+    ) {
         if self.runs.is_empty() {
             return;
         }
@@ -175,7 +192,7 @@ impl Colours {
         let total: usize = (0..alone).map(&len).sum();
         // (Asked only when there is enough to share: asking costs a small scene's pass more
         // than the pass, a free body's step 8 % of its time.)
-        let threads = match total >= PARALLEL_PASS {
+        let threads = match total >= parallel_from {
             true => rayon::current_num_threads(),
             false => 1,
         };

@@ -734,6 +734,18 @@ impl HeldImpulses {
 pub fn for_each_contact_in(
     colours: &Colours,
     selected: Option<&[u32]>,
+    contacts: (&mut [ContactConstraint], &mut [ContactPoint]),
+    bodies: &mut [SolverBody],
+    f: impl Fn(&mut ContactConstraint, &mut [ContactPoint], &mut SolverBody, &mut SolverBody) + Sync,
+) {
+    for_each_contact_from(colours, (selected, None), contacts, bodies, f);
+}
+
+/// [`for_each_contact_in`], on all threads only from `parallel_from` selected constraints up
+/// where given (see [`Colours::for_each_selected_from`]).
+pub fn for_each_contact_from(
+    colours: &Colours,
+    (selected, parallel_from): (Option<&[u32]>, Option<usize>),
     (constraints, points): (&mut [ContactConstraint], &mut [ContactPoint]),
     bodies: &mut [SolverBody],
     f: impl Fn(&mut ContactConstraint, &mut [ContactPoint], &mut SolverBody, &mut SolverBody) + Sync,
@@ -751,9 +763,12 @@ pub fn for_each_contact_in(
         let contact_points = unsafe { points.slice(c.points()) };
         unsafe { with_pair(&bodies, c.bodies(), |b1, b2| f(c, contact_points, b1, b2)) }
     };
-    match selected {
-        Some(selected) => colours.for_each_selected(constraints, selected, ahead, each),
-        None => colours.for_each(constraints, ahead, each),
+    match (selected, parallel_from) {
+        (Some(selected), Some(from)) => {
+            colours.for_each_selected_from(constraints, (selected, from), ahead, each)
+        }
+        (Some(selected), None) => colours.for_each_selected(constraints, selected, ahead, each),
+        (None, _) => colours.for_each(constraints, ahead, each),
     }
 }
 
@@ -882,7 +897,7 @@ fn solve_point_by_point(
 /// Where a point of a manifold with normal `n` is now: its separation at the step's start
 /// moved by the bodies since.
 #[inline(always)]
-fn separation_now(p: &ContactPoint, n: DVec3, b1: &SolverBody, b2: &SolverBody) -> f64 {
+pub(super) fn separation_now(p: &ContactPoint, n: DVec3, b1: &SolverBody, b2: &SolverBody) -> f64 {
     let moved = b2.point_displacement(p.r2) - b1.point_displacement(p.r1);
     p.separation + n.dot(moved)
 }

@@ -357,7 +357,7 @@ impl Batch {
         // (`solving` is the batch's moving bodies, `selected` all its constraints: see
         // `gather`.)
         self.work
-            .bounce(&self.bodies, &[], (&ctx.settings, substeps.h), |_| {});
+            .bounce(&self.bodies, &[], (&ctx.settings, substeps.h), |_, _| {});
     }
 
     /// Copies the solved bodies, constraints and points back.

@@ -822,11 +822,43 @@ impl JointBlocks {
         inv_h: f64,
         push: Option<f64>,
     ) {
+        self.solve_velocities_where((poses, bodies), held, (inv_h, push), |_| true);
+    }
+
+    /// [`JointBlocks::solve_velocities`] without a push, on the groups with a body flagged in
+    /// `struck` only, flagging no cycle for the next step (the restitution pass holds the rods
+    /// of the bodies it bounces for itself alone; the caller keeps `held` aside).
+    pub fn hold_rates_of(
+        &mut self,
+        (poses, bodies): (&[RigidBody], &mut [SolverBody]),
+        held: &mut HeldSides,
+        inv_h: f64,
+        struck: &[bool],
+    ) {
+        let flagged = |b: usize| struck.get(b) == Some(&true);
+        let touches = |records: &[DistanceRecord]| {
+            records.iter().any(|r| flagged(r.body1) || flagged(r.body2))
+        };
+        let cycled = self.cycled.clone();
+        self.solve_velocities_where((poses, bodies), held, (inv_h, None), touches);
+        self.cycled = cycled;
+    }
+
+    /// [`JointBlocks::solve_velocities`] on the groups whose records are `wanted`.
+    fn solve_velocities_where(
+        &mut self,
+        (poses, bodies): (&[RigidBody], &mut [SolverBody]),
+        held: &mut HeldSides,
+        (inv_h, push): (f64, Option<f64>),
+        wanted: impl Fn(&[DistanceRecord]) -> bool + Sync,
+    ) {
         let bodies = Shared::new(bodies);
         held.fit(self.records.len());
         self.for_each_group(&mut held.velocities, |scratch, group| {
-            // SAFETY: groups share no moving body; poses are only read.
-            unsafe { scratch.solve_group_velocities(group, poses, &bodies, inv_h, push) };
+            if wanted(group.records) {
+                // SAFETY: groups share no moving body; poses are only read.
+                unsafe { scratch.solve_group_velocities(group, poses, &bodies, inv_h, push) };
+            }
             false
         });
     }

@@ -202,7 +202,7 @@ impl Workspace {
         poses: &[RigidBody],
         joints: &[DistanceConstraint],
         (settings, h): (&crate::sim::Settings, f64),
-        hold_joints: impl FnMut(&mut [SolverBody]),
+        hold_joints: impl FnMut(&mut [SolverBody], &[bool]),
     ) {
         let rule = restitution::BounceRule {
             restitution: settings.restitution,
@@ -776,30 +776,30 @@ impl SoftStep {
         stats: &mut StepStats,
     ) {
         let w = &mut self.work;
-        let mut rows = std::mem::take(&mut w.rows);
+        let rows = std::mem::take(&mut w.rows);
         let (blocks, sides) = (&mut self.blocks, &mut self.joint_sides);
         // A bound not yet reached may be closed within the next step, not a substep: the
-        // velocities the pass leaves last that long (a rope slack by 0.005 at the end of the
-        // step let a struck box sink at 2.4 units/s within substeps of dt / 7).
+        // velocities the pass leaves last that long (a rope slack by 0.008 at the end of the
+        // step let a struck box sink at 2.4 units/s within substeps of dt / 4).
         let (poses, inv_h) = (&*bodies, 1.0 / ctx.settings.time_step);
-        // The joints are held in the restitution pass for it alone: what they held before it
-        // is what the next step starts from.
-        let mut kept: Option<(Vec<f64>, HeldSides)> = None;
-        let hold_joints = |solved: &mut [SolverBody]| {
+        // The struck bodies' joints are held in the restitution pass for it alone: rows
+        // copied, the groups' held sides put back, so the next step starts from what they
+        // held before it.
+        let (mut held_rows, mut kept_sides) = (None, None);
+        let hold_joints = |solved: &mut [SolverBody], struck: &[bool]| {
             if constraints.is_empty() {
                 return;
             }
-            kept.get_or_insert_with(|| (rows.iter().map(|r| r.impulse).collect(), sides.clone()));
-            blocks.solve_velocities((poses, solved), sides, inv_h, None);
-            let rigid = (Softness::RIGID, inv_h);
-            joint_solver::solve(&mut rows, poses, solved, rigid.0, rigid.1, false, 0.0);
+            kept_sides.get_or_insert_with(|| sides.clone());
+            blocks.hold_rates_of((poses, solved), sides, inv_h, struck);
+            let on_struck = |r: &&JointRow| struck[r.body1] || struck[r.body2];
+            let held = held_rows
+                .get_or_insert_with(|| rows.iter().filter(on_struck).copied().collect::<Vec<_>>());
+            joint_solver::solve(held, poses, solved, Softness::RIGID, inv_h, false, 0.0);
         };
         w.bounce(poses, constraints, (&ctx.settings, h), hold_joints);
-        if let Some((impulses, held)) = kept {
-            for (r, impulse) in rows.iter_mut().zip(impulses) {
-                r.impulse = impulse;
-            }
-            *sides = held;
+        if let Some(kept) = kept_sides {
+            *sides = kept;
         }
         w.rows = rows;
         for_each_indexed2(&w.moving, bodies, &mut w.bodies, |_, body, sb| {

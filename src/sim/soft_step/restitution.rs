@@ -1,19 +1,21 @@
 //! The restitution pass, once after the substeps: every point that touched this step after an
-//! approach faster than the threshold leaves with the normal velocity that carries `e^2` of its
-//! impact energy ([`bounce_velocity`]), iterated so that points touching together bounce
-//! together; then a cap that keeps it from adding energy.
+//! approach of its own faster than the threshold leaves with the normal velocity that carries
+//! `e^2` of its impact energy ([`bounce_velocity`]), iterated so that points touching together
+//! bounce together, while the points that hold the struck bodies up push back as supports and
+//! the distance constraints are held rigid; then a cap that keeps it from adding energy.
 //!
 //! Per-point targets are exact for one point and for points that touch at once, but when a
 //! body lands on one corner and the turn it takes slams another corner down within the same
 //! step, both corners' approaches count the same energy: bouncing both would create energy.
-//! So per group of bodies joined by bouncing manifolds the restitution impulses are scaled
-//! back, if needed, until the group ends the step with no more energy than it began with; and
-//! again over each group with the bodies it pushed or pulled in the step, which may hold
-//! energy the bouncing bodies handed them.
+//! So per group of bodies joined by the manifolds the pass solved (bounces and supports) the
+//! restitution impulses are scaled back, if needed, until the group ends the step with no
+//! more energy than it began with; and again over each group with the bodies it pushed or
+//! pulled in the step, which may hold energy the bouncing bodies handed them.
 
 use super::constraint_graph::Colours;
 use super::contact_solver::{
-    ContactConstraint, ContactPoint, bounce_velocity, for_each_contact_in, impact_energy,
+    ContactConstraint, ContactPoint, bounce_velocity, for_each_contact_from, impact_energy,
+    separation_now,
 };
 use super::disjoint_sets::DisjointSets;
 use super::solver_body::SolverBody;
@@ -22,9 +24,19 @@ use crate::sim::constraint::DistanceConstraint;
 use crate::sim::parallel;
 use glam::DVec3;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
 
-/// Gauss-Seidel passes of the restitution targets.
-pub const ITERATIONS: usize = 8;
+/// Most Gauss-Seidel passes of the restitution targets (see [`CONVERGED`]).
+pub const ITERATIONS: usize = 16;
+/// The restitution pass stops once no point's normal velocity changed in a pass by more than
+/// this share of the fastest bounce, or of [`SETTLED`] times the slowest speed that bounces.
+const CONVERGED: f64 = 1e-3;
+/// See [`CONVERGED`]: what a point's normal velocity may still change by in a pass, as a share
+/// of the slowest approach that bounces (the threshold, or gravity's kick over a substep).
+const SETTLED: f64 = 1e-2;
+/// Passes of the restitution over fewer manifolds than this run on one thread: a manifold's
+/// share of a pass is a few of its points, less than the barriers between colours cost.
+const PARALLEL_RESTITUTION: usize = 2048;
 
 /// What makes a point bounce: the coefficient of restitution, the threshold speed, and gravity's
 /// kick over one substep (see [`resting_speed`]).
@@ -41,6 +53,8 @@ pub struct Bounces {
     pub manifolds: Vec<u32>,
     /// Whether each point of the step bounces (empty when none does).
     pub points: Vec<bool>,
+    /// The slowest approach that bounces: the threshold, or gravity's kick over a substep.
+    pub slowest: f64,
 }
 
 /// The points among the `selected` constraints (ascending) or all that bounce: each that
@@ -72,15 +86,14 @@ pub fn bouncing_points(
     let bounces = |c: &ContactConstraint, p: &ContactPoint| {
         let speed = resting_speed(c, rule.threshold, rule.kick);
         let least = 0.5 * speed * speed;
+        // (A point moving apart when the step began comes back within it only slower than
+        // gravity's kick over the step, below any threshold.)
         let own = || {
             let (n, (i, j)) = (c.normal, c.bodies());
             let approach = p.along_normal(n).velocity(n, &at_start(i), &at_start(j));
-            impact_energy(p.separation, approach, c.normal_acceleration)
+            approach <= 0.0 && impact_energy(p.separation, approach, c.normal_acceleration) > least
         };
-        rule.restitution > 0.0
-            && p.impact_energy > least
-            && p.max_normal_impulse != 0.0
-            && own() > least
+        rule.restitution > 0.0 && p.impact_energy > least && p.max_normal_impulse != 0.0 && own()
     };
     let bounced = |k: u32| {
         let c = &constraints[k as usize];
@@ -89,13 +102,7 @@ pub fn bouncing_points(
             .any(|p| bounces(c, p))
             .then_some(k)
     };
-    let manifolds: Vec<u32> = match selected {
-        Some(selected) => parallel::filter_map(selected.par_iter(), 1024, |&k| bounced(k)),
-        None => {
-            let all = (0..constraints.len() as u32).into_par_iter();
-            parallel::filter_map(all, 1024, bounced)
-        }
-    };
+    let manifolds = filter_selected(selected, constraints.len(), bounced);
     let mut flags = Vec::new();
     if !manifolds.is_empty() {
         flags.resize(points.len(), false);
@@ -109,6 +116,7 @@ pub fn bouncing_points(
     Bounces {
         manifolds,
         points: flags,
+        slowest: rule.threshold.max(rule.kick.length()),
     }
 }
 
@@ -116,7 +124,8 @@ pub fn bouncing_points(
 /// manifolds that have one: in a pile at rest, none), colour by colour like the other passes,
 /// among the `selected` constraints (ascending) or all, at `restitution`. The points that hold
 /// the struck bodies up take part as supports ([`with_supports`]), and after each pass
-/// `hold_joints` makes the distance constraints' rates rigid again, so that what a bounce
+/// `hold_joints` makes the rates of the distance constraints on the struck bodies (flagged by
+/// solver body) rigid again, so that what a bounce
 /// drives into a support or pulls on a rod comes back as bounce. Returns the indices of the
 /// manifolds the pass solved (the bouncing ones and their supports), ascending.
 pub fn apply(
@@ -124,53 +133,144 @@ pub fn apply(
     (constraints, points): (&mut [ContactConstraint], &mut [ContactPoint]),
     bodies: &mut [SolverBody],
     (bounces, restitution): (&Bounces, f64),
-    mut hold_joints: impl FnMut(&mut [SolverBody]),
+    mut hold_joints: impl FnMut(&mut [SolverBody], &[bool]),
 ) -> Vec<u32> {
     if bounces.manifolds.is_empty() {
         return Vec::new();
     }
-    let solved = with_supports(&bounces.manifolds, selected, (constraints, points), bodies);
+    let (solved, struck) =
+        with_supports(&bounces.manifolds, selected, (constraints, points), bodies);
+    // Each group of manifolds (joined by moving bodies) is passed over until the largest change
+    // a pass makes to one of its points' normal velocities is small against its fastest bounce
+    // (a stack's supports pass a bounce on one level a pass or so): alone, not until every group
+    // has, so that a batch of islands and the colours' pass over all of them give the same bits.
+    let group = pass_groups(&solved, constraints, bodies);
+    let starts: Vec<usize> = (solved.iter())
+        .map(|&k| constraints[k as usize].points().start)
+        .collect();
+    let settled = settled_speeds(
+        bounces,
+        (&solved, &group),
+        (constraints, points),
+        restitution,
+    );
+    let mut active = vec![true; solved.len()];
     for _ in 0..ITERATIONS {
+        let largest: Vec<AtomicU64> = (0..solved.len()).map(|_| AtomicU64::new(0)).collect();
         let (selected, contacts) = (Some(&solved[..]), (&mut *constraints, &mut *points));
-        for_each_contact_in(colours, selected, contacts, bodies, |c, points, b1, b2| {
-            let n = c.normal;
+        let selected = (selected, Some(PARALLEL_RESTITUTION));
+        for_each_contact_from(colours, selected, contacts, bodies, |c, points, b1, b2| {
+            let g = group[starts.partition_point(|&s| s < c.points().start)];
+            if !active[g] {
+                return;
+            }
             let flags = &bounces.points[c.points()];
+            let mut change: f64 = 0.0;
             for (p, &bounce) in points.iter_mut().zip(flags) {
-                // A bouncing point is driven to its bounce; one that touched without bouncing
-                // is a support: it only pushes back what the bounces drive into it.
-                if !bounce && p.max_normal_impulse == 0.0 {
-                    continue;
-                }
-                let row = p.along_normal(n);
-                let vn = row.velocity(n, b1, b2);
-                let added = match bounce {
-                    true => {
-                        let moved = b2.point_displacement(p.r2) - b1.point_displacement(p.r1);
-                        let s = p.separation + n.dot(moved);
-                        let a = c.normal_acceleration;
-                        let target = bounce_velocity(p.impact_energy, restitution, s, a);
-                        let impulse = -p.normal_mass * (vn - target);
-                        // May take back what it gave but never pull.
-                        (p.normal_impulse + p.restitution_impulse + impulse).max(0.0)
-                            - p.normal_impulse
-                    }
-                    // Adds to what it held, takes nothing back.
-                    false => (p.restitution_impulse - p.normal_mass * vn).max(0.0),
-                };
-                let delta = added - p.restitution_impulse;
-                p.restitution_impulse = added;
-                row.apply(n, delta, b1, b2);
+                change = change.max(restitute(c, p, (bounce, restitution), (b1, b2)));
+            }
+            // Non-negative numbers order as their bits. Written only when larger, so that the
+            // threads do not trade the line at every manifold.
+            if change.to_bits() > largest[g].load(Ordering::Relaxed) {
+                largest[g].fetch_max(change.to_bits(), Ordering::Relaxed);
             }
         });
-        hold_joints(bodies);
+        hold_joints(bodies, &struck);
+        for (g, largest) in largest.into_iter().enumerate() {
+            active[g] &= f64::from_bits(largest.into_inner()) > settled[g];
+        }
+        if !active.contains(&true) {
+            break;
+        }
     }
     solved
+}
+
+/// One point's update in a pass of [`apply`]: a bouncing point driven to its bounce at
+/// `restitution`, one that touched without bouncing a support (it only pushes back what the
+/// bounces drive into it). Returns the change of its normal velocity (non-negative).
+#[inline(always)]
+fn restitute(
+    c: &ContactConstraint,
+    p: &mut ContactPoint,
+    (bounce, restitution): (bool, f64),
+    (b1, b2): (&mut SolverBody, &mut SolverBody),
+) -> f64 {
+    if !bounce && p.max_normal_impulse == 0.0 {
+        return 0.0;
+    }
+    let n = c.normal;
+    let row = p.along_normal(n);
+    let vn = row.velocity(n, b1, b2);
+    let added = match bounce {
+        true => {
+            let s = separation_now(p, n, b1, b2);
+            let a = c.normal_acceleration;
+            let target = bounce_velocity(p.impact_energy, restitution, s, a);
+            let impulse = -p.normal_mass * (vn - target);
+            // May take back what it gave but never pull.
+            (p.normal_impulse + p.restitution_impulse + impulse).max(0.0) - p.normal_impulse
+        }
+        // Adds to what it held, takes nothing back.
+        false => (p.restitution_impulse - p.normal_mass * vn).max(0.0),
+    };
+    let delta = added - p.restitution_impulse;
+    p.restitution_impulse = added;
+    row.apply(n, delta, b1, b2);
+    match p.normal_mass > 0.0 {
+        true => (delta / p.normal_mass).abs(),
+        false => 0.0,
+    }
+}
+
+/// Each solved manifold's group (at the place among `solved` of its group's first manifold):
+/// the manifolds joined through the moving bodies they share.
+fn pass_groups(
+    solved: &[u32],
+    constraints: &[ContactConstraint],
+    bodies: &[SolverBody],
+) -> Vec<usize> {
+    let mut ends: Vec<(usize, usize)> = (solved.iter().enumerate())
+        .flat_map(|(m, &k)| {
+            let (i, j) = constraints[k as usize].bodies();
+            [(i, m), (j, m)]
+        })
+        .filter(|&(b, _)| bodies[b].inverse_mass != 0.0)
+        .collect();
+    ends.sort_unstable();
+    let mut sets = DisjointSets::new(solved.len());
+    for pair in ends.windows(2).filter(|pair| pair[0].0 == pair[1].0) {
+        sets.join(pair[0].1, pair[1].1);
+    }
+    (0..solved.len()).map(|m| sets.root(m)).collect()
+}
+
+/// Per group (by its place, see [`pass_groups`]): the change of a point's normal velocity in a
+/// pass below which the group is done, [`CONVERGED`] of its fastest bounce (the normal speed a
+/// bouncing point leaves with) or [`SETTLED`] of the slowest approach that bounces.
+fn settled_speeds(
+    bounces: &Bounces,
+    (solved, group): (&[u32], &[usize]),
+    (constraints, points): (&[ContactConstraint], &[ContactPoint]),
+    restitution: f64,
+) -> Vec<f64> {
+    let mut settled = vec![SETTLED * bounces.slowest; solved.len()];
+    for (&k, &g) in solved.iter().zip(group) {
+        let c = &constraints[k as usize];
+        let flags = &bounces.points[c.points()];
+        for (p, _) in (points[c.points()].iter().zip(flags)).filter(|(_, bounce)| **bounce) {
+            let speed = restitution * (2.0 * p.impact_energy).sqrt();
+            settled[g] = settled[g].max(CONVERGED * speed);
+        }
+    }
+    settled
 }
 
 /// The `bouncing` manifolds (ascending) and their supports: every manifold with a point that
 /// touched this step (held a normal impulse) and a body that a bouncing or, up to
 /// [`SUPPORT_HOPS`] manifolds away, a supporting manifold moves, among the `selected`
-/// (ascending) or all. Without them a bounce drove the body it struck into what holds that
+/// (ascending) or all; and which solver bodies those manifolds move (the struck). Without
+/// them a bounce drove the body it struck into what holds that
 /// body up: a box dropped 24 units at e = 1 onto one resting on the ground went back up to
 /// 0.91 of its drop and threw the lower box 2.1 units up (a rigid support: 1 and 0); onto a
 /// stack of two, 0.86, the middle box thrown 2.9 up.
@@ -179,7 +279,7 @@ fn with_supports(
     selected: Option<&[u32]>,
     (constraints, points): (&[ContactConstraint], &[ContactPoint]),
     bodies: &[SolverBody],
-) -> Vec<u32> {
+) -> (Vec<u32>, Vec<bool>) {
     // The manifolds that touched, and their bodies: read once, then walked hop by hop.
     let touched = |k: u32| {
         let c = &constraints[k as usize];
@@ -189,28 +289,21 @@ fn with_supports(
             .any(|p| p.max_normal_impulse != 0.0);
         touched.then_some((k, i as u32, j as u32))
     };
-    let touched: Vec<(u32, u32, u32)> = match selected {
-        Some(selected) => parallel::filter_map(selected.par_iter(), 1024, |&k| touched(k)),
-        None => {
-            let all = (0..constraints.len() as u32).into_par_iter();
-            parallel::filter_map(all, 1024, touched)
+    let touched = filter_selected(selected, constraints.len(), touched);
+    let strike = |struck: &mut [bool], (i, j): (usize, usize)| {
+        for b in [i, j] {
+            struck[b] |= bodies[b].inverse_mass != 0.0;
         }
     };
-    let moves = |b: usize| bodies[b].inverse_mass != 0.0;
     let mut struck = vec![false; bodies.len()];
     for &k in bouncing {
-        let (i, j) = constraints[k as usize].bodies();
-        struck[i] |= moves(i);
-        struck[j] |= moves(j);
+        strike(&mut struck, constraints[k as usize].bodies());
     }
     let mut solved = bouncing.to_vec();
     for _ in 0..SUPPORT_HOPS {
+        // Ascending as `touched` is; a bouncing manifold touched, so it is among them.
         let reached = |&&(_, i, j): &&(u32, u32, u32)| struck[i as usize] || struck[j as usize];
-        let mut found: Vec<u32> = touched.iter().filter(reached).map(|t| t.0).collect();
-        // A bouncing manifold is among them, unless nothing held it yet.
-        found.extend_from_slice(bouncing);
-        found.sort_unstable();
-        found.dedup();
+        let found: Vec<u32> = touched.iter().filter(reached).map(|t| t.0).collect();
         if found.len() == solved.len() {
             break;
         }
@@ -218,13 +311,24 @@ fn with_supports(
             .iter()
             .filter(|&&(k, ..)| found.binary_search(&k).is_ok())
         {
-            let (i, j) = (i as usize, j as usize);
-            struck[i] |= moves(i);
-            struck[j] |= moves(j);
+            strike(&mut struck, (i as usize, j as usize));
         }
         solved = found;
     }
-    solved
+    (solved, struck)
+}
+
+/// The values `f(k)` gives for the constraint indices `k` among the `selected` (ascending) or
+/// all `count`, in order.
+fn filter_selected<T: Send>(
+    selected: Option<&[u32]>,
+    count: usize,
+    f: impl Fn(u32) -> Option<T> + Sync + Send,
+) -> Vec<T> {
+    match selected {
+        Some(selected) => parallel::filter_map(selected.par_iter(), 1024, |&k| f(k)),
+        None => parallel::filter_map((0..count as u32).into_par_iter(), 1024, f),
+    }
 }
 
 /// How many manifolds away from a bounce supports are looked for: a stack of three under the
@@ -286,7 +390,8 @@ impl EnergyRule {
 /// Settles each group's restitution (velocities between `before`, each body's (linear,
 /// angular) velocity before the restitution pass, and the current ones, scaled by a share
 /// `alpha`) on an energy consistent with the bounce: no group of bodies touching
-/// through bouncing points ends the step with more energy than `start` (each body's energy
+/// through the points the pass solved (bounces and their supports) ends the step with more
+/// energy than `start` (each body's energy
 /// when the step began). Without friction, where nothing but the impacts takes energy, the
 /// group keeps exactly `e^2` of what the impacts took (Poisson's hypothesis is
 /// energy-consistent for frictionless contacts; targets set point by point can fall short of
