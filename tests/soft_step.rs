@@ -359,7 +359,8 @@ fn a_box_starting_to_slide_down_an_incline_does_not_fall_asleep() {
 }
 
 /// A box dropped 2 units onto a box resting on the ground at e = 0.5 bounces back as off a rigid
-/// support, to within a tenth below and a twentieth above `e^2` of its drop (0.245): up to
+/// support, to within a tenth below and a twentieth above `e^2 = 0.25` of its drop (it goes
+/// back to 0.245): up to
 /// stop 64 the box below, driven into the ground, bounced too, and both bounces were counted
 /// against the one impact's energy (0.47 of its drop); up to stop 66 the cap on that let the
 /// box below, pressed into the ground, still push back (0.29).

@@ -220,7 +220,7 @@ impl Workspace {
             (&self.colours, self.selected.as_deref()),
             (&mut self.contacts, &mut self.points),
             &mut self.bodies,
-            (&bounces, settings.restitution),
+            (&bounces, settings.restitution, !joints.is_empty()),
             hold_joints,
         );
         let contacts = restitution::Contacts {
@@ -792,6 +792,8 @@ impl SoftStep {
             }
             kept_sides.get_or_insert_with(|| sides.clone());
             blocks.hold_rates_of((poses, solved), sides, inv_h, struck);
+            // (Rows on a struck body only: a chain solved row by row is held at its first
+            // link; its groups, solved exactly, are held whole.)
             let on_struck = |r: &&JointRow| struck[r.body1] || struck[r.body2];
             let held = held_rows
                 .get_or_insert_with(|| rows.iter().filter(on_struck).copied().collect::<Vec<_>>());

@@ -28,11 +28,12 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Most Gauss-Seidel passes of the restitution targets (see [`CONVERGED`]).
 pub const ITERATIONS: usize = 16;
-/// The restitution pass stops once no point's normal velocity changed in a pass by more than
-/// this share of the fastest bounce, or of [`SETTLED`] times the slowest speed that bounces.
+/// A group of the restitution pass is done once no point's normal velocity changed in a pass
+/// by more than the larger of this share of the group's fastest bounce and [`SETTLED`] of the
+/// slowest approach that bounces.
 const CONVERGED: f64 = 1e-3;
-/// See [`CONVERGED`]: what a point's normal velocity may still change by in a pass, as a share
-/// of the slowest approach that bounces (the threshold, or gravity's kick over a substep).
+/// See [`CONVERGED`]: the share of the slowest approach that bounces (the threshold, or
+/// gravity's kick over a substep) a point's normal velocity may still change by in a pass.
 const SETTLED: f64 = 1e-2;
 /// Passes of the restitution over fewer manifolds than this run on one thread: a manifold's
 /// share of a pass is a few of its points, less than the barriers between colours cost.
@@ -86,8 +87,9 @@ pub fn bouncing_points(
     let bounces = |c: &ContactConstraint, p: &ContactPoint| {
         let speed = resting_speed(c, rule.threshold, rule.kick);
         let least = 0.5 * speed * speed;
-        // (A point moving apart when the step began comes back within it only slower than
-        // gravity's kick over the step, below any threshold.)
+        // (A point moving apart when the step began is not a bounce of its own: it could come
+        // back within the step only at up to gravity's kick over the step, and is taken for
+        // one held up by its support.)
         let own = || {
             let (n, (i, j)) = (c.normal, c.bodies());
             let approach = p.along_normal(n).velocity(n, &at_start(i), &at_start(j));
@@ -120,19 +122,20 @@ pub fn bouncing_points(
     }
 }
 
-/// Drives every bouncing point's normal velocity to its target ([`ITERATIONS`] passes over the
-/// manifolds that have one: in a pile at rest, none), colour by colour like the other passes,
-/// among the `selected` constraints (ascending) or all, at `restitution`. The points that hold
-/// the struck bodies up take part as supports ([`with_supports`]), and after each pass
-/// `hold_joints` makes the rates of the distance constraints on the struck bodies (flagged by
-/// solver body) rigid again, so that what a bounce
-/// drives into a support or pulls on a rod comes back as bounce. Returns the indices of the
-/// manifolds the pass solved (the bouncing ones and their supports), ascending.
+/// Drives every bouncing point's normal velocity to its target (at most [`ITERATIONS`] passes
+/// over the manifolds that have one: in a pile at rest, none), colour by colour like the other
+/// passes, among the `selected` constraints (ascending) or all, at `restitution`. The points
+/// that hold the struck bodies up take part as supports ([`with_supports`]), and after each
+/// pass `hold_joints` makes the rates of the distance constraints on the struck bodies
+/// (flagged by solver body) rigid again, so that what a bounce drives into a support or pulls
+/// on a rod comes back as bounce. With `jointed` (distance constraints in the scene) all the
+/// manifolds are passed over until all settle, as the joints join them. Returns the indices of
+/// the manifolds the pass solved (the bouncing ones and their supports), ascending.
 pub fn apply(
     (colours, selected): (&Colours, Option<&[u32]>),
     (constraints, points): (&mut [ContactConstraint], &mut [ContactPoint]),
     bodies: &mut [SolverBody],
-    (bounces, restitution): (&Bounces, f64),
+    (bounces, restitution, jointed): (&Bounces, f64, bool),
     mut hold_joints: impl FnMut(&mut [SolverBody], &[bool]),
 ) -> Vec<u32> {
     if bounces.manifolds.is_empty() {
@@ -144,7 +147,10 @@ pub fn apply(
     // a pass makes to one of its points' normal velocities is small against its fastest bounce
     // (a stack's supports pass a bounce on one level a pass or so): alone, not until every group
     // has, so that a batch of islands and the colours' pass over all of them give the same bits.
-    let group = pass_groups(&solved, constraints, bodies);
+    let group = match jointed {
+        true => vec![0; solved.len()],
+        false => pass_groups(&solved, constraints, bodies),
+    };
     let starts: Vec<usize> = (solved.iter())
         .map(|&k| constraints[k as usize].points().start)
         .collect();
@@ -269,9 +275,9 @@ fn settled_speeds(
 /// The `bouncing` manifolds (ascending) and their supports: every manifold with a point that
 /// touched this step (held a normal impulse) and a body that a bouncing or, up to
 /// [`SUPPORT_HOPS`] manifolds away, a supporting manifold moves, among the `selected`
-/// (ascending) or all; and which solver bodies those manifolds move (the struck). Without
-/// them a bounce drove the body it struck into what holds that
-/// body up: a box dropped 24 units at e = 1 onto one resting on the ground went back up to
+/// (ascending) or all; and which solver bodies those manifolds move (the struck). Without them
+/// a bounce drove the body it struck into what holds that body up: a box dropped 24 units at
+/// e = 1 onto one resting on the ground went back up to
 /// 0.91 of its drop and threw the lower box 2.1 units up (a rigid support: 1 and 0); onto a
 /// stack of two, 0.86, the middle box thrown 2.9 up.
 fn with_supports(
@@ -332,7 +338,7 @@ fn filter_selected<T: Send>(
 }
 
 /// How many manifolds away from a bounce supports are looked for: a stack of three under the
-/// struck box. Further down what a pass of the iterations passes on is little (8 passes).
+/// struck box. Further down a pass passes on little of the bounce.
 const SUPPORT_HOPS: usize = 3;
 
 /// The approach speed below which a point of `c` does not bounce: the `threshold`, or the
@@ -389,17 +395,16 @@ impl EnergyRule {
 
 /// Settles each group's restitution (velocities between `before`, each body's (linear,
 /// angular) velocity before the restitution pass, and the current ones, scaled by a share
-/// `alpha`) on an energy consistent with the bounce: no group of bodies touching
-/// through the points the pass solved (bounces and their supports) ends the step with more
-/// energy than `start` (each body's energy
-/// when the step began). Without friction, where nothing but the impacts takes energy, the
-/// group keeps exactly `e^2` of what the impacts took (Poisson's hypothesis is
-/// energy-consistent for frictionless contacts; targets set point by point can fall short of
-/// it when a body's points disagree, as on a tilted landing): `alpha` may then exceed 1, up to
-/// [`MAX_SHARE`], unless a body of the group is held by a distance constraint. The rods pass
-/// on part of what an impact takes to bodies outside the group, which the stretched impulses
-/// then gave back as bounce: until stop 54, random scenes of jointed boxes at e = 1 without
-/// friction gained up to 154 times their energy in 10 s (tested).
+/// `alpha`) on an energy consistent with the bounce: no group of bodies touching through the
+/// points the pass solved (bounces and their supports) ends the step with more energy than
+/// `start` (each body's energy when the step began). Without friction, where nothing but the
+/// impacts takes energy, the group keeps exactly `e^2` of what the impacts took (Poisson's
+/// hypothesis is energy-consistent for frictionless contacts; targets set point by point can
+/// fall short of it when a body's points disagree, as on a tilted landing): `alpha` may then
+/// exceed 1, up to [`MAX_SHARE`], unless a body of the group is held by a distance constraint.
+/// The rods pass on part of what an impact takes to bodies outside the group, which the
+/// stretched impulses then gave back as bounce: until stop 54, random scenes of jointed boxes
+/// at e = 1 without friction gained up to 154 times their energy in 10 s (tested).
 ///
 /// Then the same cap, scaling down only, over each such group with the bodies its bouncing
 /// bodies pushed or pulled this step or are joined to by a distance constraint
