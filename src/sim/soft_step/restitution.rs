@@ -97,26 +97,27 @@ pub fn bouncing_points(
         };
         rule.restitution > 0.0 && p.impact_energy > least && p.max_normal_impulse != 0.0 && own()
     };
+    // A manifold with a bouncing point, and which of its points bounce (a bit each).
     let bounced = |k: u32| {
         let c = &constraints[k as usize];
-        points[c.points()]
-            .iter()
-            .any(|p| bounces(c, p))
-            .then_some(k)
+        let mask = (points[c.points()].iter().enumerate())
+            .filter(|(_, p)| bounces(c, p))
+            .fold(0u32, |mask, (i, _)| mask | 1 << i);
+        (mask != 0).then_some((k, mask))
     };
-    let manifolds = filter_selected(selected, constraints.len(), bounced);
+    let found = filter_selected(selected, constraints.len(), bounced);
     let mut flags = Vec::new();
-    if !manifolds.is_empty() {
+    if !found.is_empty() {
         flags.resize(points.len(), false);
-        for &k in &manifolds {
-            let c = &constraints[k as usize];
-            for (flag, p) in flags[c.points()].iter_mut().zip(&points[c.points()]) {
-                *flag = bounces(c, p);
+        for &(k, mask) in &found {
+            let range = constraints[k as usize].points();
+            for (i, flag) in flags[range].iter_mut().enumerate() {
+                *flag = mask & 1 << i != 0;
             }
         }
     }
     Bounces {
-        manifolds,
+        manifolds: found.into_iter().map(|(k, _)| k).collect(),
         points: flags,
         slowest: rule.threshold.max(rule.kick.length()),
     }
@@ -161,8 +162,9 @@ pub fn apply(
         restitution,
     );
     let mut active = vec![true; solved.len()];
+    // Each group's largest change in the pass, taken (and zeroed) after it.
+    let largest: Vec<AtomicU64> = (0..solved.len()).map(|_| AtomicU64::new(0)).collect();
     for _ in 0..ITERATIONS {
-        let largest: Vec<AtomicU64> = (0..solved.len()).map(|_| AtomicU64::new(0)).collect();
         let (selected, contacts) = (Some(&solved[..]), (&mut *constraints, &mut *points));
         let selected = (selected, Some(PARALLEL_RESTITUTION));
         for_each_contact_from(colours, selected, contacts, bodies, |c, points, b1, b2| {
@@ -182,8 +184,8 @@ pub fn apply(
             }
         });
         hold_joints(bodies, &struck);
-        for (g, largest) in largest.into_iter().enumerate() {
-            active[g] &= f64::from_bits(largest.into_inner()) > settled[g];
+        for (g, largest) in largest.iter().enumerate() {
+            active[g] &= f64::from_bits(largest.swap(0, Ordering::Relaxed)) > settled[g];
         }
         if !active.contains(&true) {
             break;
@@ -277,9 +279,9 @@ fn settled_speeds(
 /// [`SUPPORT_HOPS`] manifolds away, a supporting manifold moves, among the `selected`
 /// (ascending) or all; and which solver bodies those manifolds move (the struck). Without them
 /// a bounce drove the body it struck into what holds that body up: a box dropped 24 units at
-/// e = 1 onto one resting on the ground went back up to
-/// 0.91 of its drop and threw the lower box 2.1 units up (a rigid support: 1 and 0); onto a
-/// stack of two, 0.86, the middle box thrown 2.9 up.
+/// e = 1 onto one resting on the ground went back up to 0.91 of its drop and threw the lower
+/// box 2.1 units up (a rigid support: 1 and 0); onto a stack of two, 0.86, the middle box
+/// thrown 2.9 up.
 fn with_supports(
     bouncing: &[u32],
     selected: Option<&[u32]>,
@@ -309,17 +311,14 @@ fn with_supports(
     for _ in 0..SUPPORT_HOPS {
         // Ascending as `touched` is; a bouncing manifold touched, so it is among them.
         let reached = |&&(_, i, j): &&(u32, u32, u32)| struck[i as usize] || struck[j as usize];
-        let found: Vec<u32> = touched.iter().filter(reached).map(|t| t.0).collect();
+        let found: Vec<&(u32, u32, u32)> = touched.iter().filter(reached).collect();
         if found.len() == solved.len() {
             break;
         }
-        for &(_, i, j) in touched
-            .iter()
-            .filter(|&&(k, ..)| found.binary_search(&k).is_ok())
-        {
+        for &&(_, i, j) in &found {
             strike(&mut struck, (i as usize, j as usize));
         }
-        solved = found;
+        solved = found.into_iter().map(|t| t.0).collect();
     }
     (solved, struck)
 }
