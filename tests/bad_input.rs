@@ -524,6 +524,59 @@ fn a_fixed_bodys_negative_density_is_named() {
     assert!(zero.warnings.is_empty(), "{:?}", zero.warnings);
 }
 
+/// A body placed inside another, or partly below the ground, loads with a warning on its line
+/// that says how deep it starts (the unit corner tetrahedron's lowest vertex a quarter below its
+/// centre of mass; a copy shifted by `s` along x overlaps it by `(1 - s) / sqrt(3)`, along the
+/// normal of its slanted face); bodies that touch or lie apart, or sink less than 1 % of their
+/// size, load without one.
+#[test]
+fn bodies_that_start_inside_another_or_the_ground_are_named() {
+    let dir = Dir::new("start-inside");
+    dir.write("t.mesh", TET);
+    let scene =
+        |y: f64, s: f64| format!("2\nt.mesh 1 0 0 {y} 0 1 0 0 0\nt.mesh 1 0 {s} 5 0 1 0 0 0\n");
+    let sunk = load(&dir, &scene(0.1, 3.0), None).unwrap();
+    assert_eq!(sunk.warnings.len(), 1, "{:?}", sunk.warnings);
+    assert!(
+        sunk.warnings[0].contains("s-scene.txt:2: the body starts 0.150 below the ground"),
+        "{}",
+        sunk.warnings[0]
+    );
+    let inside = load(
+        &dir,
+        &format!("2\nt.mesh 1 0 0 5 0 1 0 0 0\nt.mesh 1 0 0.95 5 0 1 0 0 0\n"),
+        None,
+    )
+    .unwrap();
+    assert_eq!(inside.warnings.len(), 1, "{:?}", inside.warnings);
+    let depth = 0.05 / 3f64.sqrt();
+    assert!(
+        inside.warnings[0].contains(&format!(
+            "s-scene.txt:3: the body starts {depth:.3} deep inside the body on line 2"
+        )),
+        "{}",
+        inside.warnings[0]
+    );
+    for (y, s) in [(0.25, 3.0), (0.2451, 3.0)] {
+        let world = load(&dir, &scene(y, s), None).unwrap();
+        assert!(world.warnings.is_empty(), "{:?}", world.warnings);
+    }
+    for s in [1.0, 1.5] {
+        let world = load(
+            &dir,
+            &format!("2\nt.mesh 1 0 0 5 0 1 0 0 0\nt.mesh 1 0 {s} 5 0 1 0 0 0\n"),
+            None,
+        )
+        .unwrap();
+        assert!(world.warnings.is_empty(), "{:?}", world.warnings);
+    }
+    // Copies of one body on one spot: the first few named, the rest counted.
+    let copies = format!("9\n{}", "t.mesh 1 0 0 5 0 1 0 0 0\n".repeat(9));
+    let world = load(&dir, &copies, None).unwrap();
+    assert_eq!(world.warnings.len(), 6, "{:?}", world.warnings);
+    assert!(world.warnings[5].contains("31 more overlaps at the start"));
+}
+
 /// Records on the same two points (either way round) whose ranges share no distance load with a
 /// warning naming both lines; ranges that overlap load without one.
 #[test]
@@ -583,7 +636,7 @@ fn records_out_of_step_name_their_line() {
         Some(1),
         "line 2 holds 9 fields where a body record has 10",
     );
-    let scene = "2\nt.mesh 1 0 0 0 0 1 0 0 0\nt.mesh 1 0 3 0 0 1 0 0 0\n";
+    let scene = "2\nt.mesh 1 0 0 5 0 1 0 0 0\nt.mesh 1 0 3 5 0 1 0 0 0\n";
     // An extra field on line 2 and one missing on line 3: still 12 words, read out of step as
     // body 1 vertex 0 to body 0 vertex 3.
     let shifted = load(&dir, scene, Some("2\n0 0 1 0 0.9 1.1 1\n0 0 3 0.9 1.1\n")).unwrap();
@@ -625,7 +678,7 @@ fn records_out_of_step_name_their_line() {
 fn constraint_file_errors() {
     let dir = Dir::new("constraints");
     dir.write("t.mesh", TET);
-    let scene = "2\nt.mesh 1 0 0 0 0 1 0 0 0\nt.mesh 1 0 3 0 0 1 0 0 0\n";
+    let scene = "2\nt.mesh 1 0 0 5 0 1 0 0 0\nt.mesh 1 0 3 5 0 1 0 0 0\n";
     expect(
         load(&dir, scene, Some("1\n0 0 2 0 1 1\n")),
         "s-constraints.txt",

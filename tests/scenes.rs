@@ -68,8 +68,29 @@ fn every_coursework_scene_loads_and_runs_500_steps_with_either_solver() {
             "{} ({solver:?})",
             scene.file_name().unwrap().to_string_lossy()
         );
-        // One record a line and convex enough: nothing in the course's own files to warn of.
-        assert!(world.warnings.is_empty(), "{name}: {:?}", world.warnings);
+        // One record a line and convex enough: nothing in the course's own files to warn of but
+        // the mixed scene's start, which places the cylinder inside the tetrahedron and one box
+        // inside the other.
+        let starts_inside = |w: &String| w.contains("deep inside the body on line");
+        let overlaps: Vec<&String> = world.warnings.iter().filter(|w| starts_inside(w)).collect();
+        assert_eq!(
+            overlaps.len(),
+            world.warnings.len(),
+            "{name}: {:?}",
+            world.warnings
+        );
+        if name.starts_with("mixed-scene.txt") {
+            assert!(
+                overlaps.len() == 2
+                    && overlaps[0].contains("mixed-scene.txt:4: the body starts 1.4")
+                    && overlaps[0].contains("on line 2:")
+                    && overlaps[1].contains("mixed-scene.txt:7: the body starts 0.3")
+                    && overlaps[1].contains("on line 3:"),
+                "{name}: {overlaps:?}"
+            );
+        } else {
+            assert!(overlaps.is_empty(), "{name}: {overlaps:?}");
+        }
         let constraints_file = tumble::scene::default_constraints_path(scene).unwrap();
         if constraints_file.exists() {
             let text = std::fs::read_to_string(&constraints_file).unwrap();
