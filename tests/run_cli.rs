@@ -260,7 +260,8 @@ fn bench_scale_quick_keeps_what_is_named() {
 
 /// `--gravity` pulls every body the way it says: the cube scene's eight octahedra, held
 /// rigidly together, fall sideways as one, by semi-implicit Euler's `g dt^2 n (n + 1) / 2`
-/// after n steps, and not at all along y.
+/// after n steps, and not at all along y. The trajectory written to standard output is the
+/// file's.
 #[test]
 fn gravity_is_a_flag() {
     let dir = std::env::temp_dir().join(format!("tumble-gravity-{}", std::process::id()));
@@ -282,6 +283,26 @@ fn gravity_is_a_flag() {
             .arg(&path),
     );
     let rows = std::fs::read_to_string(&path).unwrap();
+    // `--trajectory -`: the same rows on standard output, the summary on standard error, and
+    // no file named `-`.
+    let piped = succeeded(
+        tumble()
+            .current_dir(&dir)
+            .args([
+                "run",
+                "cube",
+                "--steps",
+                "10",
+                "--dt",
+                "0.02",
+                "--gravity",
+                "3,0,0",
+            ])
+            .args(["--trajectory", "-"]),
+    );
+    assert_eq!(String::from_utf8_lossy(&piped.stdout), rows);
+    assert!(String::from_utf8_lossy(&piped.stderr).starts_with("scene cube: 8 bodies"));
+    assert!(!dir.join("-").exists());
     let _ = std::fs::remove_dir_all(&dir);
     let field = |row: &str, k: usize| row.split(',').nth(k).unwrap().parse::<f64>().unwrap();
     let rows: Vec<&str> = rows.lines().skip(1).collect();

@@ -3,7 +3,8 @@
 use super::{SceneArgs, SettingsArgs, progress_bar};
 use clap::Args;
 use serde::Serialize;
-use std::path::PathBuf;
+use std::io::Write;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tumble::io::{counted, trajectory};
 use tumble::sim::quarantine::ABSURD_SPEED;
@@ -17,7 +18,7 @@ pub struct RunArgs {
     #[arg(long, default_value_t = 500, allow_negative_numbers = true, value_parser = super::whole_number::<u64>)]
     pub steps: u64,
     /// Write time, centre of mass and orientation of every body at the start (step 0) and after
-    /// every step (CSV).
+    /// every step (CSV); `-` writes it to standard output, and the summary to standard error.
     #[arg(long, value_name = "FILE.csv")]
     pub trajectory: Option<PathBuf>,
     /// Print one JSON object instead of the text summary (JSON has no infinity: a number that
@@ -72,15 +73,9 @@ pub struct RunSummary {
 pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let settings = args.settings.settings()?;
     let mut world = args.scene.load(settings.clone())?;
-    if let Some(path) = &args.trajectory {
-        tumble::io::check_output(path, &world.inputs)?;
-    }
     let mut summary = RunSummary::start(&args.scene.scene, args.steps, &world, settings);
-    // Rows stream into a temporary file, renamed into place when the run ends (also on Ctrl-C).
-    let mut trajectory = args
-        .trajectory
-        .as_deref()
-        .map(tumble::io::AtomicFile::create)
+    let mut trajectory = (args.trajectory.as_deref())
+        .map(|path| TrajectoryOut::open(path, &world.inputs))
         .transpose()?;
     if let Some(out) = &mut trajectory {
         trajectory::write_header(out.writer())?;
@@ -91,8 +86,10 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     let completed = simulate(args.steps, &mut world, &mut summary, trajectory.as_mut())?;
     summary.finish(&world, completed, start.elapsed().as_secs_f64());
     let interrupted = completed < args.steps;
+    // With the trajectory on standard output, the summary goes to standard error.
+    let to_stdout = matches!(trajectory, Some(TrajectoryOut::Stdout(_)));
     if let Some(out) = trajectory {
-        out.commit()?;
+        out.finish()?;
     }
     if interrupted {
         eprintln!(
@@ -105,10 +102,14 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
             }
         );
     }
+    let mut out: Box<dyn Write> = match to_stdout {
+        true => Box::new(std::io::stderr().lock()),
+        false => Box::new(std::io::stdout().lock()),
+    };
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        writeln!(out, "{}", serde_json::to_string_pretty(&summary)?)?;
     } else {
-        print_summary(&summary);
+        print_summary(&mut out, &summary)?;
     }
     if interrupted {
         std::process::exit(super::interrupt::exit_status());
@@ -116,12 +117,45 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Where the trajectory goes: a file, its rows streamed into a temporary file renamed into
+/// place when the run ends (also on Ctrl-C), or standard output (`-`).
+enum TrajectoryOut {
+    File(tumble::io::AtomicFile),
+    Stdout(std::io::BufWriter<std::io::Stdout>),
+}
+
+impl TrajectoryOut {
+    /// The output `path` names; a file must not be one of the scene's `inputs`.
+    fn open(path: &Path, inputs: &[PathBuf]) -> anyhow::Result<Self> {
+        if path == Path::new("-") {
+            return Ok(Self::Stdout(std::io::BufWriter::new(std::io::stdout())));
+        }
+        tumble::io::check_output(path, inputs)?;
+        Ok(Self::File(tumble::io::AtomicFile::create(path)?))
+    }
+
+    fn writer(&mut self) -> &mut dyn Write {
+        match self {
+            Self::File(file) => file.writer(),
+            Self::Stdout(out) => out,
+        }
+    }
+
+    /// The file renamed into place, or standard output flushed.
+    fn finish(self) -> anyhow::Result<()> {
+        match self {
+            Self::File(file) => file.commit(),
+            Self::Stdout(mut out) => Ok(out.flush()?),
+        }
+    }
+}
+
 /// Steps until `steps` are done or Ctrl-C; returns the number of steps completed.
 fn simulate(
     steps: u64,
     world: &mut tumble::World,
     summary: &mut RunSummary,
-    trajectory: Option<&mut tumble::io::AtomicFile>,
+    trajectory: Option<&mut TrajectoryOut>,
 ) -> anyhow::Result<u64> {
     let bar = progress_bar(steps, "simulating");
     // Where the world's steps run: in the thread pool, handed over once, for a large scene.
@@ -136,7 +170,7 @@ fn steps_until_interrupted(
     steps: u64,
     world: &mut tumble::World,
     summary: &mut RunSummary,
-    mut trajectory: Option<&mut tumble::io::AtomicFile>,
+    mut trajectory: Option<&mut TrajectoryOut>,
     bar: &indicatif::ProgressBar,
 ) -> anyhow::Result<u64> {
     let mut completed = 0;
@@ -259,14 +293,16 @@ impl RunSummary {
     }
 }
 
-fn print_summary(s: &RunSummary) {
+/// The text summary, into `out`.
+fn print_summary(out: &mut impl Write, s: &RunSummary) -> std::io::Result<()> {
     // Each constraint record is a lower and an upper inequality (the coursework's M counts both).
     let records = s.constraints / 2;
     let inequalities = match s.constraints {
         0 => String::new(),
         n => format!(" ({n} inequalities)"),
     };
-    println!(
+    writeln!(
+        out,
         "scene {}: {}, {}{inequalities}",
         s.scene,
         counted(s.bodies as u64, "body", "bodies"),
@@ -275,58 +311,66 @@ fn print_summary(s: &RunSummary) {
             "distance constraint",
             "distance constraints"
         ),
-    );
-    println!(
+    )?;
+    writeln!(
+        out,
         "{} steps ({} s simulated) in {:.3} s wall: {:.0} steps/s",
         s.steps,
         super::decimals(s.sim_time, 2),
         s.wall_s,
         s.steps_per_s
-    );
-    println!(
+    )?;
+    writeln!(
+        out,
         "contacts {} body-body, {} ground; deepest penetration {}",
         s.contacts,
         s.ground_contacts,
         super::decimals(s.max_penetration, 4)
-    );
+    )?;
     let per_step = |n: usize| n as f64 / s.steps.max(1) as f64;
-    println!(
+    writeln!(
+        out,
         "per step: {:.1} box tests, {:.1} narrow-phase queries, {:.2} substeps",
         per_step(s.pairs_tested),
         per_step(s.narrow_phase_queries),
         per_step(s.substeps_taken as usize)
-    );
+    )?;
     if s.constraints > 0 && s.settings.solver == tumble::sim::settings::Solver::SoftStep {
-        println!(
+        writeln!(
+            out,
             "joint projections cut short {}, worst violation {:.4}",
             s.joint_projections_cut_short, s.max_constraint_violation
-        );
+        )?;
     } else if s.constraints > 0 {
-        println!(
+        writeln!(
+            out,
             "constraint visits {}, budget hit in {} steps, worst violation {:.4}",
             s.constraint_visits, s.budget_hits, s.max_constraint_violation
-        );
+        )?;
     }
-    println!(
+    writeln!(
+        out,
         "energy {:.6e} -> {:.6e} ({:+.3}%)",
         s.energy_start,
         s.energy_end,
         100.0 * (s.energy_end - s.energy_start) / s.energy_start.abs().max(1e-300)
-    );
+    )?;
     if s.joint_groups_relaxed > 0 {
-        println!(
+        writeln!(
+            out,
             "joint groups over-braced (rods that depend on each other): {} solved by Gauss-Seidel, held within a few percent",
             s.joint_groups_relaxed
-        );
+        )?;
     }
     if s.asleep_at_end > 0 {
-        println!(
+        writeln!(
+            out,
             "asleep at the end: {} of {} bodies",
             s.asleep_at_end, s.bodies
-        );
+        )?;
     }
     if s.quarantined.is_empty() {
-        println!("all values finite: {}", s.finite);
+        writeln!(out, "all values finite: {}", s.finite)?;
     } else {
         let shown: Vec<String> = s
             .quarantined
@@ -339,11 +383,12 @@ fn print_summary(s: &RunSummary) {
         } else {
             ""
         };
-        println!(
+        writeln!(
+            out,
             "all values finite: false ({} blew up and were frozen: {}{more})",
             counted(s.quarantined.len() as u64, "body", "bodies"),
             shown.join(", ")
-        );
+        )?;
     }
     let stages: Vec<String> = s
         .stage_ms
@@ -351,5 +396,5 @@ fn print_summary(s: &RunSummary) {
         .filter(|(stage, _)| stage.runs_under(s.settings.solver))
         .map(|(stage, ms)| format!("{} {ms:.3}", stage.name()))
         .collect();
-    println!("ms/step: {}", stages.join(", "));
+    writeln!(out, "ms/step: {}", stages.join(", "))
 }

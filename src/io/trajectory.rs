@@ -5,12 +5,12 @@ use std::io::Write;
 
 pub const HEADER: &str = "step,time,body,x,y,z,qw,qx,qy,qz";
 
-pub fn write_header(out: &mut impl Write) -> std::io::Result<()> {
+pub fn write_header(out: &mut (impl Write + ?Sized)) -> std::io::Result<()> {
     writeln!(out, "{HEADER}")
 }
 
 /// The rows of every body at the world's current step.
-pub fn write_rows(out: &mut impl Write, world: &World) -> std::io::Result<()> {
+pub fn write_rows(out: &mut (impl Write + ?Sized), world: &World) -> std::io::Result<()> {
     for (i, b) in world.bodies.iter().enumerate() {
         let (p, q) = (b.position, b.orientation);
         writeln!(
