@@ -298,7 +298,12 @@ fn record_png_frames() {
     assert_eq!((w, h), (80, 60));
     let (_, _, last) = read_png(&out.join(&names[2]));
     assert_ne!(first, last);
-    // Into the folder, now there: recorded again (it was refused as "a folder").
+    // Into the folder, now there: recorded again (it was refused as "a folder"), its one frame
+    // replacing the three; files named otherwise stay.
+    let theirs = ["frame_intro.png", "frame_1.png", "frame_0000001.txt"];
+    for name in theirs {
+        std::fs::write(out.join(name), name).unwrap();
+    }
     let again = tumble()
         .args(["record", "two-chain", "--seconds", "0.1", "--fps", "10"])
         .args(["--size", "80x60", "-o"])
@@ -307,10 +312,25 @@ fn record_png_frames() {
         .unwrap();
     let stderr = String::from_utf8_lossy(&again.stderr);
     assert!(again.status.success(), "{stderr}");
+    let mut names: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(
+        names,
+        [
+            "frame_000000.png",
+            "frame_0000001.txt",
+            "frame_1.png",
+            "frame_intro.png"
+        ]
+    );
 }
 
-/// Recording frames into a folder replaces the `frame_*.png` there; not one the run reads (a
-/// scene saved under such a name). Refused before any rendering, so no GPU is needed.
+/// Recording frames into a folder replaces the frames an earlier one left there; not one the run
+/// reads (a scene saved under such a name). Refused before any rendering, so no GPU is needed.
 #[test]
 fn frames_never_replace_an_input() {
     let dir = scratch("png-input");
@@ -319,7 +339,7 @@ fn frames_never_replace_an_input() {
         "/assets/tetrahedron.mesh"
     ));
     std::fs::write(dir.join("t.mesh"), mesh).unwrap();
-    let scene = dir.join("frame_scene.png");
+    let scene = dir.join("frame_000007.png");
     let text = "1\nt.mesh 1 0 0 3 0 1 0 0 0\n";
     std::fs::write(&scene, text).unwrap();
     fails_saying(

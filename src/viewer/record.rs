@@ -149,17 +149,22 @@ impl PngDirEncoder {
     }
 }
 
-/// The frames an earlier recording left in `folder` (`frame_*.png`), which a new one replaces.
+/// The frames an earlier recording left in `folder`, which a new one replaces: files named as
+/// [`PngDirEncoder`] names them (`frame_` and six digits or more, `.png`), and no other (a
+/// user's `frame_intro.png` or `frame_1.png` stays).
 fn earlier_frames(folder: &Path) -> Vec<PathBuf> {
     let Ok(entries) = std::fs::read_dir(folder) else {
         return Vec::new(); // Not there yet.
     };
+    let is_frame = |name: &str| {
+        let digits = name
+            .strip_prefix("frame_")
+            .and_then(|n| n.strip_suffix(".png"));
+        digits.is_some_and(|d| d.len() >= 6 && d.bytes().all(|b| b.is_ascii_digit()))
+    };
     entries
         .flatten()
-        .filter(|entry| {
-            let name = entry.file_name().to_string_lossy().into_owned();
-            name.starts_with("frame_") && name.ends_with(".png")
-        })
+        .filter(|entry| entry.file_name().to_str().is_some_and(is_frame))
         .map(|entry| entry.path())
         .collect()
 }
