@@ -361,6 +361,16 @@ fn mesh_volume_errors() {
         )
         .is_ok()
     );
+    // Lone CR line ends (classic Mac OS) end lines and comments too: a comment on the first line
+    // hides nothing after it, and an error names its own line.
+    let classic = format!("# a comment\n{TET}").replace('\n', "\r");
+    assert!(mesh(&classic).is_ok());
+    expect(
+        mesh(&classic.replace("1 2 3 4 0", "1 2 3 9 0")),
+        "m.mesh",
+        Some(12),
+        "vertex 9",
+    );
 }
 
 #[test]

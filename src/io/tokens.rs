@@ -41,7 +41,7 @@ pub struct Token<'a> {
 }
 
 /// Splits `text` into whitespace-separated tokens, dropping `#` comments (to end of line).
-/// Tolerates CRLF line endings, tabs and blank lines.
+/// Tolerates CRLF and lone CR line endings ([`lines`]), tabs and blank lines.
 pub struct Tokens<'a> {
     tokens: Vec<Token<'a>>,
     next: usize,
@@ -52,13 +52,33 @@ pub struct Tokens<'a> {
     layout_break: Option<LayoutBreak>,
 }
 
+/// The lines of `text`, each ended by `\n`, `\r\n` or a lone `\r` (the line end of classic
+/// Mac OS files): with `str::lines`, which ends lines at `\n` only, such a file was one line,
+/// all of it comment after a `#` on its first, and every error named line 1. As `str::lines`,
+/// no empty line after the last line end.
+fn lines(text: &str) -> impl Iterator<Item = &str> {
+    let mut rest = text;
+    std::iter::from_fn(move || {
+        if rest.is_empty() {
+            return None;
+        }
+        let (line, after) = match rest.find(['\r', '\n']) {
+            Some(at) if rest[at..].starts_with("\r\n") => (&rest[..at], at + 2),
+            Some(at) => (&rest[..at], at + 1),
+            None => (rest, rest.len()),
+        };
+        rest = &rest[after..];
+        Some(line)
+    })
+}
+
 impl<'a> Tokens<'a> {
     pub fn new(file: &'a Path, text: &'a str) -> Self {
         // A byte-order mark (some Windows editors write one) is not a word of the file.
         let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let mut tokens = Vec::new();
         let mut last_line = 1;
-        for (index, line) in text.lines().enumerate() {
+        for (index, line) in lines(text).enumerate() {
             let content = match line.find('#') {
                 Some(at) => &line[..at],
                 None => line,
