@@ -201,6 +201,23 @@ fn scene_file_errors() {
     let huge = orientation("1e200 2e200 0 -2e200");
     let small = orientation("1 2 0 -2");
     assert!(huge.angle_between(small) < 1e-12, "{huge} against {small}");
+    // So is one whose squares underflow, down to the smallest subnormal: only zero is zero.
+    for tiny in [
+        "1e-13 2e-13 0 -2e-13",
+        "1e-200 2e-200 0 -2e-200",
+        "0 5e-324 0 0",
+    ] {
+        let q = orientation(tiny);
+        let expected = if tiny.starts_with('0') {
+            glam::DQuat::from_xyzw(1.0, 0.0, 0.0, 0.0)
+        } else {
+            small
+        };
+        assert!(
+            q.angle_between(expected) < 1e-12,
+            "{tiny}: {q} against {expected}"
+        );
+    }
 }
 
 /// A scene of one body on the medit mesh `text`, written as `m.mesh` in `dir`.

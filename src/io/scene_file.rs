@@ -86,13 +86,14 @@ pub fn parse_scene(file: &Path, text: &str) -> Result<Records<SceneRecord>, Load
     })
 }
 
-/// The unit quaternion along `q` (finite components), or None for a length of 1e-12 or less.
-/// Components whose squares overflow are scaled down first: still a rotation, not "zero".
+/// The unit quaternion along `q` (finite components), or None for the zero quaternion. Any
+/// other is a rotation, however large or small its components: scaled by the largest first,
+/// so that their squares neither overflow nor underflow (until a later stop a length of 1e-12
+/// or less was called zero, while one whose squares overflowed was scaled).
 fn normalised(q: DQuat) -> Option<DQuat> {
-    let norm = q.length();
-    if norm.is_infinite() {
-        let scaled = q / glam::DVec4::from(q).abs().max_element();
-        return Some(scaled / scaled.length());
-    }
-    (norm > 1e-12).then(|| q / norm)
+    let largest = glam::DVec4::from(q).abs().max_element();
+    (largest > 0.0).then(|| {
+        let scaled = q / largest;
+        scaled / scaled.length()
+    })
 }
