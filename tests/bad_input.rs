@@ -1188,6 +1188,8 @@ fn cli_warns_of_settings_the_solver_ignores() {
     // Not three hundred digits.
     assert!(run(&["--dt", "1e300"]).contains("--dt 1e300: steps over 0.1 s"));
     assert!(!run(&["--dt", "0.1"]).contains("warning"));
+    assert!(run(&["--dt", "1e-300"]).contains("--dt 1e-300: steps under 1e-7 s"));
+    assert!(!run(&["--dt", "1e-7"]).contains("warning"));
 }
 
 /// A constraint file given with a generated scene is refused (it ran without it, in silence),

@@ -92,6 +92,11 @@ fn parse_vector(text: &str) -> Result<DVec3, String> {
 /// 1e9 s the soft step's bodies blow up and are frozen.
 const LONGEST_SENSIBLE_STEP: f64 = 0.1;
 
+/// Shortest time step taken without a warning: below it a simulated second takes over ten
+/// million steps, and at 1e-300 s no body moves at all (its moves are below its position's
+/// rounding).
+const SHORTEST_SENSIBLE_STEP: f64 = 1e-7;
+
 impl SettingsArgs {
     pub fn settings(&self) -> anyhow::Result<Settings> {
         let mut s = if self.accurate {
@@ -181,6 +186,12 @@ impl SettingsArgs {
         let mut notes = Vec::new();
         if s.time_step == 0.0 {
             notes.push("--dt 0: time does not advance, nothing will move".to_string());
+        }
+        if s.time_step > 0.0 && s.time_step < SHORTEST_SENSIBLE_STEP {
+            notes.push(format!(
+                "--dt {:e}: steps under {SHORTEST_SENSIBLE_STEP:e} s take over ten million steps a simulated second, and the shortest move no body at all (the default is 0.02)",
+                s.time_step
+            ));
         }
         if s.time_step > LONGEST_SENSIBLE_STEP {
             notes.push(format!(
