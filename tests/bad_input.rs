@@ -192,32 +192,40 @@ fn scene_file_errors() {
     );
     // A fixed body may have any density, even zero.
     assert!(load(&dir, "1\nt.mesh 0 1 0 0 0 1 0 0 0\n", None).is_ok());
-    // A quaternion whose length overflows (components finite, their squares not) is a
-    // rotation like any other: the same as its components scaled down, not "zero".
+}
+
+/// A quaternion whose length overflows (components finite, their squares not) is a rotation like
+/// any other, the same as its components scaled down, not "zero"; so is one whose squares
+/// underflow, down to the smallest subnormal: only the zero quaternion is refused.
+#[test]
+fn every_quaternion_but_zero_is_a_rotation() {
+    let dir = Dir::new("quaternions");
+    dir.write("t.mesh", TET);
     let orientation = |q: &str| {
-        let world = load(&dir, &format!("1\nt.mesh 1 0 0 0 0 {q}\n"), None);
+        let world = load(&dir, &format!("1\nt.mesh 1 0 0 5 0 {q}\n"), None);
         world.unwrap_or_else(|e| panic!("{q}: {e}")).bodies[0].orientation
     };
-    let huge = orientation("1e200 2e200 0 -2e200");
     let small = orientation("1 2 0 -2");
-    assert!(huge.angle_between(small) < 1e-12, "{huge} against {small}");
-    // So is one whose squares underflow, down to the smallest subnormal: only zero is zero.
-    for tiny in [
-        "1e-13 2e-13 0 -2e-13",
-        "1e-200 2e-200 0 -2e-200",
-        "0 5e-324 0 0",
-    ] {
-        let q = orientation(tiny);
-        let expected = if tiny.starts_with('0') {
-            glam::DQuat::from_xyzw(1.0, 0.0, 0.0, 0.0)
-        } else {
-            small
-        };
-        assert!(
-            q.angle_between(expected) < 1e-12,
-            "{tiny}: {q} against {expected}"
-        );
+    let half_turn_about_x = glam::DQuat::from_xyzw(1.0, 0.0, 0.0, 0.0);
+    let cases = [
+        ("1e200 2e200 0 -2e200", small),
+        ("1e-13 2e-13 0 -2e-13", small),
+        ("1e-200 2e-200 0 -2e-200", small),
+        ("0 5e-324 0 0", half_turn_about_x),
+    ];
+    for (q, expected) in cases {
+        let got = orientation(q);
+        let apart = (glam::DVec4::from(got) - glam::DVec4::from(expected))
+            .abs()
+            .max_element();
+        assert!(apart < 1e-15, "{q}: {got} against {expected}");
     }
+    expect(
+        load(&dir, "1\nt.mesh 1 0 0 5 0 0 0 0 0\n", None),
+        "s-scene.txt",
+        Some(2),
+        "zero",
+    );
 }
 
 /// A scene of one body on the medit mesh `text`, written as `m.mesh` in `dir`.
@@ -555,53 +563,62 @@ fn a_fixed_bodys_negative_density_is_named() {
 /// that says how deep it starts (the unit corner tetrahedron's lowest vertex a quarter below its
 /// centre of mass; a copy shifted by `s` along x overlaps it by `(1 - s) / sqrt(3)`, along the
 /// normal of its slanted face); bodies that touch or lie apart, or sink less than 1 % of their
-/// size, load without one.
+/// size, and fixed bodies below the ground, load without one.
 #[test]
 fn bodies_that_start_inside_another_or_the_ground_are_named() {
     let dir = Dir::new("start-inside");
     dir.write("t.mesh", TET);
-    let scene =
-        |y: f64, s: f64| format!("2\nt.mesh 1 0 0 {y} 0 1 0 0 0\nt.mesh 1 0 {s} 5 0 1 0 0 0\n");
-    let sunk = load(&dir, &scene(0.1, 3.0), None).unwrap();
-    assert_eq!(sunk.warnings.len(), 1, "{:?}", sunk.warnings);
+    // Body 0 at height y, body 1 at (s, 5, 0); `fixed` the flags of the two.
+    let scene = |y: f64, s: f64, fixed: [u8; 2]| {
+        let [a, b] = fixed;
+        format!("2\nt.mesh 1 {a} 0 {y} 0 1 0 0 0\nt.mesh 1 {b} {s} 5 0 1 0 0 0\n")
+    };
+    let warnings =
+        |y: f64, s: f64, fixed: [u8; 2]| load(&dir, &scene(y, s, fixed), None).unwrap().warnings;
+    let sunk = warnings(0.1, 3.0, [0, 0]);
+    assert_eq!(sunk.len(), 1, "{sunk:?}");
     assert!(
-        sunk.warnings[0].contains("s-scene.txt:2: the body starts 0.150 below the ground"),
+        sunk[0].contains("s-scene.txt:2: the body starts 0.150 below the ground"),
         "{}",
-        sunk.warnings[0]
+        sunk[0]
     );
-    let inside = load(
-        &dir,
-        &format!("2\nt.mesh 1 0 0 5 0 1 0 0 0\nt.mesh 1 0 0.95 5 0 1 0 0 0\n"),
-        None,
-    )
-    .unwrap();
-    assert_eq!(inside.warnings.len(), 1, "{:?}", inside.warnings);
+    // Three significant figures: 0.0289.
+    let inside = warnings(5.0, 0.95, [0, 0]);
+    assert_eq!(inside.len(), 1, "{inside:?}");
     let depth = 0.05 / 3f64.sqrt();
+    let said = format!("s-scene.txt:3: the body starts {depth:.4} deep inside the body on line 2");
+    assert!(inside[0].contains(&said), "{}", inside[0]);
+    // Inside a fixed body listed after it: named on its own line, pushed out.
+    let held = warnings(5.0, 0.95, [0, 1]);
+    let said =
+        format!("s-scene.txt:2: the body starts {depth:.4} deep inside the fixed body on line 3");
+    assert!(held.len() == 1 && held[0].contains(&said), "{held:?}");
+    // A fixed body below the ground, bodies touching or apart, and a body sunk 0.49 % of its size.
+    for (y, s, fixed) in [
+        (-3.0, 3.0, [1, 0]),
+        (5.0, 1.0, [0, 0]),
+        (5.0, 1.5, [0, 0]),
+        (0.2451, 3.0, [0, 0]),
+    ] {
+        let quiet = warnings(y, s, fixed);
+        assert!(quiet.is_empty(), "{y} {s} {fixed:?}: {quiet:?}");
+    }
+    // Copies of one body on one spot: the first five named in line order, the rest counted.
+    let copies = |n: usize| format!("{n}\n{}", "t.mesh 1 0 0 5 0 1 0 0 0\n".repeat(n));
+    let nine = load(&dir, &copies(9), None).unwrap().warnings;
+    assert_eq!(nine.len(), 6, "{nine:?}");
+    let lines = ["3: ", "4: ", "4: ", "5: ", "5: "];
+    for (w, line) in nine.iter().zip(lines) {
+        assert!(w.contains(&format!("s-scene.txt:{line}")), "{nine:?}");
+    }
+    assert!(nine[5].ends_with(
+        "s-scene.txt: 31 more overlaps at the start (a body inside another or below the ground)"
+    ));
+    let four = load(&dir, &copies(4), None).unwrap().warnings;
     assert!(
-        inside.warnings[0].contains(&format!(
-            "s-scene.txt:3: the body starts {depth:.3} deep inside the body on line 2"
-        )),
-        "{}",
-        inside.warnings[0]
+        four[5].contains(": 1 more overlap at the start"),
+        "{four:?}"
     );
-    for (y, s) in [(0.25, 3.0), (0.2451, 3.0)] {
-        let world = load(&dir, &scene(y, s), None).unwrap();
-        assert!(world.warnings.is_empty(), "{:?}", world.warnings);
-    }
-    for s in [1.0, 1.5] {
-        let world = load(
-            &dir,
-            &format!("2\nt.mesh 1 0 0 5 0 1 0 0 0\nt.mesh 1 0 {s} 5 0 1 0 0 0\n"),
-            None,
-        )
-        .unwrap();
-        assert!(world.warnings.is_empty(), "{:?}", world.warnings);
-    }
-    // Copies of one body on one spot: the first few named, the rest counted.
-    let copies = format!("9\n{}", "t.mesh 1 0 0 5 0 1 0 0 0\n".repeat(9));
-    let world = load(&dir, &copies, None).unwrap();
-    assert_eq!(world.warnings.len(), 6, "{:?}", world.warnings);
-    assert!(world.warnings[5].contains("31 more overlaps at the start"));
 }
 
 /// Records on the same two points (either way round) whose ranges share no distance load with a
@@ -1188,7 +1205,10 @@ fn cli_warns_of_settings_the_solver_ignores() {
     // Not three hundred digits.
     assert!(run(&["--dt", "1e300"]).contains("--dt 1e300: steps over 0.1 s"));
     assert!(!run(&["--dt", "0.1"]).contains("warning"));
-    assert!(run(&["--dt", "1e-300"]).contains("--dt 1e-300: steps under 1e-7 s"));
+    assert!(
+        run(&["--dt", "1e-300"])
+            .contains("--dt 1e-300: under 1e-7 s a simulated second takes over ten million steps")
+    );
     assert!(!run(&["--dt", "1e-7"]).contains("warning"));
 }
 

@@ -183,7 +183,7 @@ fn piles_rest_without_sinking_at_the_largest_step() {
         let draw = format!("friction {friction}, restitution {restitution}");
         assert!(!moving(&pile), "{draw}: still moving after 15 s");
         let size = (pile.bodies.iter().filter(|b| !b.fixed))
-            .map(|b| 2.0 * pile.shapes[b.shape].local_box_half_extents.min_element())
+            .map(|b| pile.shapes[b.shape].least_extent())
             .fold(f64::INFINITY, f64::min);
         let depth = (pile.current_contacts().iter())
             .map(|(_, _, c)| c.depth)

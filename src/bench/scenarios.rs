@@ -768,7 +768,7 @@ fn pile_rest(run: &Run) -> Measured {
         .bodies
         .iter()
         .filter(|b| !b.fixed)
-        .map(|b| 2.0 * world.shapes[b.shape].local_box_half_extents.min_element())
+        .map(|b| world.shapes[b.shape].least_extent())
         .fold(f64::INFINITY, f64::min);
     let speed = world
         .bodies

@@ -189,7 +189,7 @@ impl SettingsArgs {
         }
         if s.time_step > 0.0 && s.time_step < SHORTEST_SENSIBLE_STEP {
             notes.push(format!(
-                "--dt {:e}: steps under {SHORTEST_SENSIBLE_STEP:e} s take over ten million steps a simulated second, and the shortest move no body at all (the default is 0.02)",
+                "--dt {:e}: under {SHORTEST_SENSIBLE_STEP:e} s a simulated second takes over ten million steps, and far shorter steps (1e-300) move no body at all (the default is 0.02)",
                 s.time_step
             ));
         }

@@ -348,6 +348,11 @@ fn print_summary(out: &mut impl Write, s: &RunSummary) -> std::io::Result<()> {
             s.constraint_visits, s.budget_hits, s.max_constraint_violation
         )?;
     }
+    print_state_at_end(out, s)
+}
+
+/// The summary's lines on the state the run ended in: energy, sleep, blow-ups, stage times.
+fn print_state_at_end(out: &mut impl Write, s: &RunSummary) -> std::io::Result<()> {
     writeln!(
         out,
         "energy {:.6e} -> {:.6e} ({:+.3}%)",

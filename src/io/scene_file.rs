@@ -88,8 +88,8 @@ pub fn parse_scene(file: &Path, text: &str) -> Result<Records<SceneRecord>, Load
 
 /// The unit quaternion along `q` (finite components), or None for the zero quaternion. Any
 /// other is a rotation, however large or small its components: scaled by the largest first,
-/// so that their squares neither overflow nor underflow (until a later stop a length of 1e-12
-/// or less was called zero, while one whose squares overflowed was scaled).
+/// so that their squares neither overflow nor underflow (before stop 67 a length of 1e-12 or
+/// less was called zero, while one whose squares overflowed was scaled).
 fn normalised(q: DQuat) -> Option<DQuat> {
     let largest = glam::DVec4::from(q).abs().max_element();
     (largest > 0.0).then(|| {

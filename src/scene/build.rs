@@ -4,8 +4,8 @@
 use super::ConstraintsChoice;
 use super::files::{Disk, FileSource};
 use crate::io::{
-    ConstraintRecord, LoadError, SceneRecord, TetMesh, parse_constraints, parse_medit, parse_off,
-    parse_scene,
+    ConstraintRecord, LoadError, SceneRecord, TetMesh, counted, parse_constraints, parse_medit,
+    parse_off, parse_scene,
 };
 use crate::sim::body::RigidBody;
 use crate::sim::constraint::DistanceConstraint;
@@ -119,58 +119,88 @@ pub(super) fn load_with(
 /// Depth, as a share of the smaller body's least extent, from which a body that starts inside
 /// another or below the ground is called out: the pile_rest bound (`bench accuracy`), under
 /// which resting contacts' own sag lies. Deeper, the solvers push the bodies apart in the first
-/// steps, with speeds the scene did not ask for (200 copies of one tetrahedron on one line of a
-/// scene gained 8 times their energy under the preset).
+/// steps, with speeds the scene did not ask for (200 copies of one tetrahedron at one spot
+/// gained 8 times their energy under the preset).
 const STARTING_OVERLAP: f64 = 0.01;
 
 /// Overlaps reported one by one at most; the rest are counted.
 const OVERLAPS_LISTED: usize = 5;
 
-/// A warning for each body that starts inside another or below the ground (y = 0), deeper than
-/// [`STARTING_OVERLAP`] of its size, naming the records' lines; past [`OVERLAPS_LISTED`], one
-/// that counts the rest. `records[i]` is body i's record.
+/// A warning for each movable body that starts inside another body or below the ground
+/// (y = 0), deeper than [`STARTING_OVERLAP`] of its size, on its record's line (of two movable
+/// bodies, the later's: it is placed inside the earlier), in line order; past
+/// [`OVERLAPS_LISTED`], one that counts the rest. `records[i]` is body i's record. (The depths
+/// are those of the solver's own contacts: with `--contact-patches` the coursework's.)
 fn starting_overlaps(world: &World, path: &Path, records: &[SceneRecord]) -> Vec<String> {
-    let size = |i: usize| {
-        let body = &world.bodies[i];
-        2.0 * world.shapes[body.shape]
-            .local_box_half_extents
-            .min_element()
-    };
-    let mut found: Vec<(usize, Option<usize>, f64)> = (world.current_contacts().into_iter())
+    let size = |i: usize| world.shapes[world.bodies[i].shape].least_extent();
+    let mut found: Vec<Overlap> = (world.current_contacts().into_iter())
         .filter_map(|(i, j, c)| {
             let smaller = j.map_or(size(i), |j| size(i).min(size(j)));
-            (c.depth > STARTING_OVERLAP * smaller).then_some((i, j, c.depth))
+            (c.depth > STARTING_OVERLAP * smaller).then(|| Overlap::new(world, (i, j), c.depth))
         })
         .collect();
-    found.sort_by_key(|&(i, j, _)| (i, j));
-    let line = |i: usize| records[i].line;
+    found.sort_by_key(|o| (records[o.inside].line, o.other.map(|b| records[b].line)));
     let mut warnings: Vec<String> = (found.iter().take(OVERLAPS_LISTED))
-        .map(|&(i, j, depth)| match j {
-            // Told on the later record's line: it is placed inside the earlier body.
-            Some(j) => LoadError::new(
-                path,
-                Some(line(i.max(j))),
-                format!(
-                    "the body starts {depth:.3} deep inside the body on line {}: the solver will push them apart",
-                    line(i.min(j))
-                ),
-            ),
-            None => LoadError::new(
-                path,
-                Some(line(i)),
-                format!("the body starts {depth:.3} below the ground (y = 0): the solver will push it up"),
-            ),
-        })
-        .map(|w| w.to_string())
+        .map(|o| o.warning(world, path, records).to_string())
         .collect();
     if found.len() > OVERLAPS_LISTED {
-        warnings.push(format!(
-            "{}: {} more overlaps at the start (a body inside another or below the ground)",
-            path.display(),
-            found.len() - OVERLAPS_LISTED
-        ));
+        let more = counted(
+            (found.len() - OVERLAPS_LISTED) as u64,
+            "more overlap",
+            "more overlaps",
+        );
+        let what = format!("{more} at the start (a body inside another or below the ground)");
+        warnings.push(LoadError::new(path, None, what).to_string());
     }
     warnings
+}
+
+/// A body that starts `depth` inside body `other`, or below the ground (None).
+struct Overlap {
+    inside: usize,
+    other: Option<usize>,
+    depth: f64,
+}
+
+impl Overlap {
+    /// The overlap of contact `(i, j)`, told from the body that moves: the later of two movable
+    /// bodies, the movable one of a movable and a fixed body.
+    fn new(world: &World, (i, j): (usize, Option<usize>), depth: f64) -> Self {
+        let (inside, other) = match j {
+            Some(j) if world.bodies[i.max(j)].fixed => (i.min(j), Some(i.max(j))),
+            Some(j) => (i.max(j), Some(i.min(j))),
+            None => (i, None),
+        };
+        Self {
+            inside,
+            other,
+            depth,
+        }
+    }
+
+    fn warning(&self, world: &World, path: &Path, records: &[SceneRecord]) -> LoadError {
+        let depth = three_figures(self.depth);
+        let problem = match self.other {
+            Some(b) if world.bodies[b].fixed => format!(
+                "the body starts {depth} deep inside the fixed body on line {}: the solver will push it out",
+                records[b].line
+            ),
+            Some(b) => format!(
+                "the body starts {depth} deep inside the body on line {}: the solver will push them apart",
+                records[b].line
+            ),
+            None => format!(
+                "the body starts {depth} below the ground (y = 0): the solver will push it up"
+            ),
+        };
+        LoadError::new(path, Some(records[self.inside].line), problem)
+    }
+}
+
+/// `x` (positive) to three significant figures: a depth of 2e-4 is not "0.000".
+fn three_figures(x: f64) -> String {
+    let decimals = (2 - x.log10().floor() as i64).clamp(0, 20) as usize;
+    format!("{x:.decimals$}")
 }
 
 /// Below this share of its hull's volume a mesh is called out as not convex. Not 1: a coarse
@@ -382,4 +412,18 @@ fn build_constraints(
         ));
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::three_figures;
+
+    #[test]
+    fn depths_are_told_to_three_significant_figures() {
+        let told = [1.456, 0.333, 0.15, 0.028868, 2.04e-4, 123.4].map(three_figures);
+        assert_eq!(
+            told,
+            ["1.46", "0.333", "0.150", "0.0289", "0.000204", "123"]
+        );
+    }
 }

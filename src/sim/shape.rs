@@ -268,6 +268,12 @@ impl Shape {
         self.volume / self.hull.mass_properties(1.0).mass()
     }
 
+    /// The shape's size along its thinnest axis of its local box: what a depth is measured
+    /// against (a body 1 % into another, or into the ground).
+    pub fn least_extent(&self) -> f64 {
+        2.0 * self.local_box_half_extents.min_element()
+    }
+
     /// Largest distance of a rest vertex from the centre of mass.
     pub fn bounding_radius(&self) -> f64 {
         self.rest_vertices

@@ -297,8 +297,9 @@ impl World {
         self.bodies.iter().all(|b| b.is_finite())
     }
 
-    /// Contacts at the current poses, for display: (body1, body2 or None for the ground, contact).
-    /// Detection only, through a broad phase of its own; nothing is resolved.
+    /// Contacts at the current poses: (body1, body2 or None for the ground, contact), for the
+    /// contact display, the bench's depths and the scene loader's check of bodies that start
+    /// inside another. Detection only, through a broad phase of its own; nothing is resolved.
     pub fn current_contacts(&self) -> Vec<(usize, Option<usize>, Contact)> {
         let (bodies, shapes) = (&self.bodies, &self.shapes);
         let mut broad = self.broad_phase.clone();

@@ -447,7 +447,8 @@ fn scene_picker(
 }
 
 /// The scene's load warnings (a file's records out of step, a mesh that is not convex, a
-/// constraint between fixed bodies), the first few in full: a window shows no terminal.
+/// constraint between fixed bodies, a body that starts inside another or below the ground),
+/// the first few in full: a window shows no terminal.
 fn warnings_ui(ui: &mut egui::Ui, warnings: &[String]) {
     const SHOWN: usize = 3;
     let amber = Color32::from_rgb(240, 190, 80);
