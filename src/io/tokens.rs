@@ -72,6 +72,13 @@ fn lines(text: &str) -> impl Iterator<Item = &str> {
     })
 }
 
+/// The line (from 1) that byte `byte` of `text` lies on, by the line ends of [`lines`]: for an
+/// error found in the bytes before the text is read as words (invalid UTF-8).
+pub fn line_at(text: &str, byte: usize) -> usize {
+    let before = text.get(..byte).unwrap_or(text);
+    (lines(before).count() + before.ends_with(['\r', '\n']) as usize).max(1)
+}
+
 impl<'a> Tokens<'a> {
     pub fn new(file: &'a Path, text: &'a str) -> Self {
         // A byte-order mark (some Windows editors write one) is not a word of the file.
@@ -250,5 +257,29 @@ impl<'a> Tokens<'a> {
             return Err(LoadError::new(self.file, Some(line), message));
         }
         Ok(count)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{line_at, lines};
+
+    /// Lines end at LF, CRLF or a lone CR; a CR then a CRLF (a CRLF file converted twice) is two
+    /// line ends, as Python's universal newlines read it; no empty line after the last end.
+    #[test]
+    fn lines_end_at_lf_crlf_or_a_lone_cr() {
+        fn split(text: &str) -> Vec<&str> {
+            lines(text).collect()
+        }
+        assert_eq!(split("a\r\nb\rc\nd"), ["a", "b", "c", "d"]);
+        assert_eq!(split("a\r"), ["a"]);
+        assert_eq!(split("a\r\r\nb"), ["a", "", "b"]);
+        assert_eq!(split("\n\n"), ["", ""]);
+        assert!(split("").is_empty());
+        assert_eq!(split("a"), ["a"]);
+        // Byte 5 ("c") lies on line 3, byte 0 on line 1, the end of "a\r" on line 2.
+        assert_eq!(line_at("a\r\nb\rc", 5), 3);
+        assert_eq!(line_at("a\r\nb\rc", 0), 1);
+        assert_eq!(line_at("a\r", 2), 2);
     }
 }

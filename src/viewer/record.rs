@@ -149,22 +149,31 @@ impl PngDirEncoder {
     }
 }
 
-/// The frames an earlier recording left in `folder`, which a new one replaces: files named as
-/// [`PngDirEncoder`] names them (`frame_` and six digits or more, `.png`), and no other (a
-/// user's `frame_intro.png` or `frame_1.png` stays).
+/// Frame k of a folder recording is `frame_` and k in six digits or more, `.png`.
+const FRAME_PREFIX: &str = "frame_";
+const FRAME_DIGITS: usize = 6;
+
+/// The name of frame `k` of a folder recording.
+fn frame_name(k: u64) -> String {
+    format!("{FRAME_PREFIX}{k:0FRAME_DIGITS$}.png")
+}
+
+/// Whether `name` is one that [`frame_name`] gives, and no other (a user's `frame_intro.png` or
+/// `frame_1.png` is not).
+fn is_frame_name(name: &str) -> bool {
+    let digits = (name.strip_prefix(FRAME_PREFIX)).and_then(|n| n.strip_suffix(".png"));
+    digits.is_some_and(|d| d.len() >= FRAME_DIGITS && d.bytes().all(|b| b.is_ascii_digit()))
+}
+
+/// The frames an earlier recording left in `folder` ([`is_frame_name`]), which a new one
+/// replaces.
 fn earlier_frames(folder: &Path) -> Vec<PathBuf> {
     let Ok(entries) = std::fs::read_dir(folder) else {
         return Vec::new(); // Not there yet.
     };
-    let is_frame = |name: &str| {
-        let digits = name
-            .strip_prefix("frame_")
-            .and_then(|n| n.strip_suffix(".png"));
-        digits.is_some_and(|d| d.len() >= 6 && d.bytes().all(|b| b.is_ascii_digit()))
-    };
     entries
         .flatten()
-        .filter(|entry| entry.file_name().to_str().is_some_and(is_frame))
+        .filter(|entry| entry.file_name().to_str().is_some_and(is_frame_name))
         .map(|entry| entry.path())
         .collect()
 }
@@ -207,7 +216,7 @@ fn check_frames_folder(folder: &Path, inputs: &[PathBuf]) -> anyhow::Result<()> 
 
 impl Encoder for PngDirEncoder {
     fn frame(&mut self, image: &mut Image) -> anyhow::Result<()> {
-        let path = self.dir.join(format!("frame_{:06}.png", self.frames));
+        let path = self.dir.join(frame_name(self.frames));
         self.frames += 1;
         image.save_png(&path)
     }
@@ -703,6 +712,28 @@ fn compared_worlds(world: World, compare: Option<&Settings>) -> Vec<(World, Step
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A new recording replaces the frames an earlier one wrote, past a million too, and no
+    /// other file (checked without a GPU; `tests/record_cli.rs` records into a folder).
+    #[test]
+    fn only_the_frames_a_recording_names_are_replaced() {
+        for k in [0, 7, 999_999, 1_000_000] {
+            assert!(is_frame_name(&frame_name(k)), "{}", frame_name(k));
+        }
+        assert_eq!(frame_name(12), "frame_000012.png");
+        let theirs = [
+            "frame_intro.png",
+            "frame_1.png",
+            "frame_00001.png",
+            "frame_000001.PNG",
+        ];
+        for name in theirs
+            .into_iter()
+            .chain(["frame_0000x1.png", "frame_.png", "x_000001.png"])
+        {
+            assert!(!is_frame_name(name), "{name}");
+        }
+    }
 
     #[test]
     fn output_kinds() {
