@@ -24,9 +24,10 @@ fn corpus(target: &str) -> Vec<(String, Vec<u8>)> {
 }
 
 /// Byte-level mutations in the spirit of libFuzzer's: flips, deletions, duplications, and
-/// splices of numbers that stress parsers (huge, negative, non-finite, overflowing).
+/// splices of numbers that stress parsers (huge, negative, non-finite, overflowing) and of line
+/// ends (LF, and a lone CR, which the readers take as one too).
 fn mutate(input: &[u8], rng: &mut Rng) -> Vec<u8> {
-    const TOKENS: [&str; 10] = [
+    const TOKENS: [&str; 11] = [
         " 4294967296 ",
         " -1 ",
         " nan ",
@@ -34,6 +35,7 @@ fn mutate(input: &[u8], rng: &mut Rng) -> Vec<u8> {
         " 1e308 ",
         " 0 ",
         "\n",
+        "\r",
         " 18446744073709551616 ",
         " 1e-320 ",
         " End ",
