@@ -435,13 +435,28 @@ fn panel_frame(
     state: &mut tumble::viewer::panel::PanelState,
     recording: Option<(&str, u64)>,
 ) -> (Vec<String>, egui::Rect) {
+    let (shapes, view) = ui_frame(session, state, recording, egui::vec2(1280.0, 2000.0));
+    let texts = (shapes.iter())
+        .filter_map(|clipped| match &clipped.shape {
+            egui::Shape::Text(text) => Some(text.galley.job.text.clone()),
+            _ => None,
+        })
+        .collect();
+    (texts, view)
+}
+
+/// The shapes of a headless frame of the UI in a window of `size` points, and the rectangle it
+/// leaves the view: the second frame (see [`panel_frame`]).
+fn ui_frame(
+    session: &mut Session,
+    state: &mut tumble::viewer::panel::PanelState,
+    recording: Option<(&str, u64)>,
+    size: egui::Vec2,
+) -> (Vec<egui::epaint::ClippedShape>, egui::Rect) {
     use tumble::viewer::panel::{self, FrameInfo};
     let ctx = egui::Context::default();
     let input = egui::RawInput {
-        screen_rect: Some(egui::Rect::from_min_size(
-            egui::Pos2::ZERO,
-            egui::vec2(1280.0, 2000.0),
-        )),
+        screen_rect: Some(egui::Rect::from_min_size(egui::Pos2::ZERO, size)),
         ..Default::default()
     };
     let info = FrameInfo {
@@ -454,13 +469,56 @@ fn panel_frame(
     };
     panel::run(&ctx, input.clone(), session, state, &info);
     let frame = panel::run(&ctx, input, session, state, &info);
-    let texts = (frame.output.shapes.iter())
-        .filter_map(|clipped| match &clipped.shape {
-            egui::Shape::Text(text) => Some(text.galley.job.text.clone()),
+    (frame.output.shapes, frame.view)
+}
+
+/// In a small window the compared worlds' labels and the status lines over the view end within
+/// their panes, side by side or as a ghost overlay, the panel shown or hidden (they ran under
+/// the panel and into the other pane, up to stop 67).
+#[test]
+fn labels_stay_in_their_panes_in_a_small_window() {
+    use tumble::viewer::compare::Layout;
+    let mut s = session("tower", Settings::default());
+    s.compare(Settings::accurate());
+    s.step_once();
+    // (A 400-point window with the panel shown leaves the view 40 points: room for no text.)
+    for (size, layout, hidden) in [
+        ((400.0, 300.0), Layout::SideBySide, true),
+        ((800.0, 500.0), Layout::SideBySide, false),
+        ((800.0, 500.0), Layout::SideBySide, true),
+        ((640.0, 480.0), Layout::Ghost, false),
+    ] {
+        let mut state = tumble::viewer::panel::PanelState {
+            hidden,
+            ..Default::default()
+        };
+        state.draw.layout = layout;
+        let size = egui::vec2(size.0, size.1);
+        let (shapes, view) = ui_frame(&mut s, &mut state, None, size);
+        let rect = [view.min.x, view.min.y, view.width(), view.height()];
+        let panes = tumble::viewer::compare::panes(rect, 2, layout);
+        let texts = shapes.iter().filter_map(|clipped| match &clipped.shape {
+            egui::Shape::Text(text) => Some(text),
             _ => None,
-        })
-        .collect();
-    (texts, frame.view)
+        });
+        let mut in_view = 0;
+        for text in texts.filter(|t| view.contains(t.pos)) {
+            in_view += 1;
+            let right = text.pos.x + text.galley.rect.width();
+            let pane = panes
+                .iter()
+                .find(|p| text.pos.x >= p.rect[0] && text.pos.x < p.rect[0] + p.rect[2]);
+            let pane =
+                pane.unwrap_or_else(|| panic!("{size:?}: {:?} in no pane", text.galley.job.text));
+            assert!(
+                right <= pane.rect[0] + pane.rect[2] + 0.5,
+                "{size:?} {layout:?}: {:?} ends at {right}, its pane at {}",
+                text.galley.job.text,
+                pane.rect[0] + pane.rect[2]
+            );
+        }
+        assert!(in_view >= 4, "{size:?}: {in_view} texts over the view");
+    }
 }
 
 /// With the panel hidden (H) the view takes the whole window, and its corner says what the

@@ -7,10 +7,16 @@ use super::compare;
 use crate::{StepStats, World};
 use egui::{Color32, RichText};
 
+/// Where a pane's labels start, from its top left corner (pixels or points); they end as far
+/// from its right edge.
+pub const LABEL_MARGIN: [f32; 2] = [10.0, 8.0];
+
 /// A label and where its top left corner goes (pixels of the frame, or points of the window).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Label {
     pub pos: [f32; 2],
+    /// The widest its lines may be: longer ones end in "..." (its pane's width less the margins).
+    pub width: f32,
     pub title: String,
     pub color: Color32,
     pub statistics: String,
@@ -22,6 +28,7 @@ impl Label {
         let role = if ghost && lane > 0 { " (ghost)" } else { "" };
         Label {
             pos: [0.0, 0.0],
+            width: f32::INFINITY,
             title: format!(
                 "{}{role}: {}",
                 compare::lane_name(lane),
@@ -46,7 +53,9 @@ impl Label {
             for &k in &pane.lanes {
                 let (world, last) = worlds[k];
                 let mut label = Label::of_lane(k, world, last, ghost);
-                label.pos = [pane.rect[0] + 10.0, pane.rect[1] + 8.0];
+                let [x, y] = LABEL_MARGIN;
+                label.pos = [pane.rect[0] + x, pane.rect[1] + y];
+                label.width = pane.rect[2] - 2.0 * x;
                 labels.push(label);
             }
         }
@@ -136,7 +145,9 @@ impl LabelPainter {
                     .fade_in(false)
                     .fixed_pos(egui::pos2(x, y) / zoom)
                     .show(ui.ctx(), |ui| {
-                        ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Extend);
+                        // The backing's margins inside the label's width.
+                        ui.set_max_width((group[0].width / zoom - 8.0).max(1.0));
+                        ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Truncate);
                         egui::Frame::new()
                             .fill(Color32::from_black_alpha(150))
                             .inner_margin(4)

@@ -2,7 +2,7 @@
 //! live statistics and plots; and the overlay over the 3D view with each pane's label.
 
 use super::compare::{self, Layout};
-use super::labels::Label;
+use super::labels::{LABEL_MARGIN, Label};
 use super::renderer::DrawOptions;
 use super::session::{Lane, Session};
 use crate::sim::settings::Solver;
@@ -880,12 +880,15 @@ pub fn overlay(
         );
     }
     for (k, pane) in panes.iter().enumerate() {
-        let corner = egui::pos2(pane.rect[0], pane.rect[1]) + egui::vec2(10.0, 8.0);
+        let corner = egui::pos2(pane.rect[0], pane.rect[1]) + egui::Vec2::from(LABEL_MARGIN);
         egui::Area::new(egui::Id::unique(("view_overlay", k)))
             .fixed_pos(corner)
             .interactable(false)
             .show(ctx, |ui| {
-                ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Extend);
+                // Lines longer than their pane end in "..." rather than run into the next pane
+                // or under the panel.
+                ui.set_max_width((pane.rect[2] - 2.0 * LABEL_MARGIN[0]).max(1.0));
+                ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Truncate);
                 if k == 0 {
                     status_lines(ui, session);
                     if state.hidden {
