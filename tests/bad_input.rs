@@ -735,6 +735,21 @@ fn constraint_file_errors() {
         Some(2),
         "vertex index 4 is out of range",
     );
+    // An .off surface of four vertices: its vertex 3 may be named, not 4, the centroid its
+    // reader fans the solid from (named as the surface's fifth vertex before stop 67).
+    let faces = TET_FACES.join("\n");
+    dir.write(
+        "m.off",
+        &format!("OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n{faces}\n"),
+    );
+    let surfaces = "2\nm.off 1 0 0 5 0 1 0 0 0\nm.off 1 0 3 5 0 1 0 0 0\n";
+    assert!(load(&dir, surfaces, Some("1\n0 3 1 3 1 1\n")).is_ok());
+    expect(
+        load(&dir, surfaces, Some("1\n0 4 1 0 1 1\n")),
+        "s-constraints.txt",
+        Some(2),
+        "vertex index 4 is out of range: body 0's mesh has 4 vertices",
+    );
     expect(
         load(&dir, scene, Some("2\n0 0 1 0 1 1\n")),
         "s-constraints.txt",

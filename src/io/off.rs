@@ -189,5 +189,6 @@ fn fan_tetrahedralise(
         tetrahedra,
         triangles,
         volumes: TetVolumes::Signed,
+        added_vertices: 1,
     })
 }

@@ -31,11 +31,13 @@ fn convex_fan(mut vertices: Vec<DVec3>, mut triangles: Vec<[u32; 3]>) -> TetMesh
     let apex = vertices.len() as u32;
     vertices.push(center);
     let tetrahedra = triangles.iter().map(|t| [apex, t[0], t[1], t[2]]).collect();
+    // The centre is written into the asset files, a vertex like the others.
     TetMesh {
         vertices,
         tetrahedra,
         triangles,
         volumes: TetVolumes::Absolute,
+        added_vertices: 0,
     }
 }
 

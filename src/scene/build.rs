@@ -359,7 +359,8 @@ fn build_constraints(
                     ),
                 ));
             }
-            let count = shapes[bodies[body].shape].rest_vertices.len();
+            // An .off surface's fan apex, which the reader adds, is not the file's to name.
+            let count = shapes[bodies[body].shape].named_vertices;
             if vertex >= count {
                 return Err(LoadError::new(
                     file,

@@ -14,6 +14,9 @@ pub struct TetMesh {
     pub triangles: Vec<[u32; 3]>,
     /// How the tetrahedra's volumes count in the mass properties.
     pub volumes: TetVolumes,
+    /// Vertices the reader added after those the file names (an `.off` surface's fan apex):
+    /// a constraint file may not name them.
+    pub added_vertices: usize,
 }
 
 /// How a tetrahedron's volume counts in [`tet_mass_properties`].
@@ -140,6 +143,9 @@ pub struct Shape {
     /// Whether the hull is exactly that box (its eight corners): then two such bodies meet
     /// through the box-box separating-axis test instead of GJK on their hulls.
     pub is_box: bool,
+    /// The first `named_vertices` rest vertices are the mesh file's own, those a constraint
+    /// may name (see [`TetMesh::added_vertices`]).
+    pub named_vertices: usize,
 }
 
 impl std::fmt::Debug for Shape {
@@ -187,6 +193,7 @@ impl Shape {
             hull,
             local_box_center: center,
             local_box_half_extents: half,
+            named_vertices: mesh.vertices.len().saturating_sub(mesh.added_vertices),
         })
     }
 }
