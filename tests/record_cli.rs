@@ -261,6 +261,17 @@ fn read_png(path: &Path) -> (u32, u32, Vec<u8>) {
     (info.width, info.height, buffer)
 }
 
+/// The names of the files in `dir`, sorted.
+fn sorted_names(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
 #[test]
 fn record_png_frames() {
     let dir = scratch("png");
@@ -284,12 +295,7 @@ fn record_png_frames() {
         return;
     };
     assert!(String::from_utf8_lossy(&output.stdout).contains("wrote 3 frames"));
-    let mut names: Vec<String> = std::fs::read_dir(&out)
-        .unwrap()
-        .flatten()
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
+    let names = sorted_names(&out);
     assert_eq!(
         names,
         ["frame_000000.png", "frame_000001.png", "frame_000002.png"]
@@ -312,12 +318,7 @@ fn record_png_frames() {
         .unwrap();
     let stderr = String::from_utf8_lossy(&again.stderr);
     assert!(again.status.success(), "{stderr}");
-    let mut names: Vec<String> = std::fs::read_dir(&out)
-        .unwrap()
-        .flatten()
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
+    let names = sorted_names(&out);
     assert_eq!(
         names,
         [

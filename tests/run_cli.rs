@@ -267,37 +267,24 @@ fn gravity_is_a_flag() {
     let dir = std::env::temp_dir().join(format!("tumble-gravity-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("sideways.csv");
-    succeeded(
-        tumble()
-            .args([
-                "run",
-                "cube",
-                "--steps",
-                "10",
-                "--dt",
-                "0.02",
-                "--gravity",
-                "3,0,0",
-            ])
-            .arg("--trajectory")
-            .arg(&path),
-    );
+    let sideways = [
+        "run",
+        "cube",
+        "--steps",
+        "10",
+        "--dt",
+        "0.02",
+        "--gravity",
+        "3,0,0",
+    ];
+    succeeded(tumble().args(sideways).arg("--trajectory").arg(&path));
     let rows = std::fs::read_to_string(&path).unwrap();
     // `--trajectory -`: the same rows on standard output, the summary on standard error, and
     // no file named `-`.
     let piped = succeeded(
         tumble()
             .current_dir(&dir)
-            .args([
-                "run",
-                "cube",
-                "--steps",
-                "10",
-                "--dt",
-                "0.02",
-                "--gravity",
-                "3,0,0",
-            ])
+            .args(sideways)
             .args(["--trajectory", "-"]),
     );
     assert_eq!(String::from_utf8_lossy(&piped.stdout), rows);
