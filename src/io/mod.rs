@@ -92,7 +92,8 @@ impl LoadError {
         }
     }
 
-    /// The same error attributed to another file (a reader works on text, the caller knows the path).
+    /// The same error attributed to another file (a reader works on text, the caller knows the
+    /// path).
     pub fn in_file(mut self, file: &Path) -> Self {
         self.file = file.to_path_buf();
         self

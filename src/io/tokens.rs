@@ -209,7 +209,8 @@ impl<'a> Tokens<'a> {
         }
     }
 
-    /// A count of records that follow, each of at least `tokens_per_record` tokens, at most `limit`.
+    /// A count of records that follow, each of at least `tokens_per_record` tokens, at most
+    /// `limit`.
     pub fn count(
         &mut self,
         what: &str,
