@@ -51,6 +51,13 @@ impl PairQueue {
         }
     }
 
+    /// The candidate `ahead` places after the next one from the list, if any: a later pair of
+    /// the loop (pairs pushed later may come between), whose data may be asked for early.
+    pub fn candidate_ahead(&self, ahead: usize) -> Option<(usize, usize)> {
+        let (i, j) = *self.candidates.get(self.next_candidate + ahead)?;
+        Some((i as usize, j as usize))
+    }
+
     /// The next pair (i < j) in order, each pair once.
     pub fn pop(&mut self) -> Option<((usize, usize), PairSource)> {
         loop {

@@ -217,6 +217,9 @@ fn precompute(
     parallel::extend_map(out, candidates.par_iter(), 16, detect);
 }
 
+/// Pairs ahead of the loop whose boxes [`resolve_in_order`] asks the cache for.
+const BOX_PREFETCH_DISTANCE: usize = 8;
+
 /// Sequential resolution in pair order. A pair whose bodies a resolution moved is tested again
 /// at the new poses; a body that left its proxy box brings its new pairs into the queue.
 fn resolve_in_order(
@@ -233,6 +236,11 @@ fn resolve_in_order(
     let mut reached = Reached::default();
     let mut narrow = SampledStage::new(Stage::NarrowPhase);
     while let Some(((i, j), source)) = queue.pop() {
+        // The boxes of a pair a few places on, which it reads if its bodies have moved: at
+        // 100,000 bodies (19 MB of boxes) the box test of such a pair waited on memory.
+        if let Some((a, b)) = queue.candidate_ahead(BOX_PREFETCH_DISTANCE) {
+            broad.prefetch_boxes(a, b);
+        }
         let stale = moved[i] || moved[j];
         let kept = match source {
             PairSource::Candidate(k) if !stale => precomputed.get(k),

@@ -349,14 +349,8 @@ impl<T> Shared<'_, T> {
     /// happens off x86-64 or out of bounds).
     #[inline(always)]
     pub fn prefetch(&self, i: usize) {
-        #[cfg(target_arch = "x86_64")]
         if i < self.len {
-            use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-            let first = self.ptr.wrapping_add(i).cast::<i8>();
-            for line in (0..std::mem::size_of::<T>()).step_by(64) {
-                // SAFETY: a prefetch reads nothing and cannot fault.
-                unsafe { _mm_prefetch::<_MM_HINT_T0>(first.wrapping_add(line)) };
-            }
+            crate::sim::buffer::prefetch(self.ptr.wrapping_add(i));
         }
     }
 
