@@ -215,6 +215,16 @@ pub fn any_awake(bodies: &[RigidBody]) -> bool {
 }
 
 /// Whether two bodies can collide: not when either is frozen, nor when both are fixed.
+/// Asks the cache for body `i`'s pose and shape index, the fields a contact test reads first
+/// (a hint: nothing changes; nothing happens for an index out of range).
+#[inline(always)]
+pub fn prefetch_pose(bodies: &[RigidBody], i: usize) {
+    if let Some(body) = bodies.get(i) {
+        let hot = std::mem::offset_of!(RigidBody, shape) + std::mem::size_of::<usize>();
+        super::buffer::prefetch_bytes((body as *const RigidBody).cast(), hot);
+    }
+}
+
 pub fn may_collide(a: &RigidBody, b: &RigidBody) -> bool {
     flags_may_collide(collision_flags(a), collision_flags(b))
 }

@@ -73,13 +73,23 @@ pub fn map_indices<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync + Send, out:
 /// scattered over more memory than the caches hold, asking a few items ahead hides the wait.
 #[inline(always)]
 pub fn prefetch<T>(item: *const T) {
+    prefetch_bytes(item.cast(), std::mem::size_of::<T>());
+}
+
+/// [`prefetch`] for the first `bytes` bytes at `start` only (the lines they touch).
+#[inline(always)]
+pub fn prefetch_bytes(start: *const u8, bytes: usize) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        let first = item.cast::<i8>();
-        for line in (0..std::mem::size_of::<T>()).step_by(64) {
+        let first = start.cast::<i8>();
+        // The last byte's line too, where `start` is not at a line's start.
+        let lines = (0..bytes)
+            .step_by(64)
+            .chain((bytes > 0).then_some(bytes - 1));
+        for offset in lines {
             // SAFETY: a prefetch reads nothing and cannot fault.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(first.wrapping_add(line)) };
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(first.wrapping_add(offset)) };
         }
     }
 }
