@@ -214,7 +214,6 @@ pub fn any_awake(bodies: &[RigidBody]) -> bool {
     bodies.iter().any(RigidBody::is_awake)
 }
 
-/// Whether two bodies can collide: not when either is frozen, nor when both are fixed.
 /// Asks the cache for body `i`'s pose and shape index, the fields a contact test reads first
 /// (a hint: nothing changes; nothing happens for an index out of range).
 #[inline(always)]
@@ -225,6 +224,7 @@ pub fn prefetch_pose(bodies: &[RigidBody], i: usize) {
     }
 }
 
+/// Whether two bodies can collide: not when either is frozen, nor when both are fixed.
 pub fn may_collide(a: &RigidBody, b: &RigidBody) -> bool {
     flags_may_collide(collision_flags(a), collision_flags(b))
 }
