@@ -214,8 +214,9 @@ pub fn any_awake(bodies: &[RigidBody]) -> bool {
     bodies.iter().any(RigidBody::is_awake)
 }
 
-/// Asks the cache for body `i`'s pose and shape index, the fields a contact test reads first
-/// (a hint: nothing changes; nothing happens for an index out of range).
+/// Asks the cache for body `i`'s first fields, through its shape index (160 bytes: its pose and
+/// shape index, which a contact test reads first, and what lies between them; a hint: nothing
+/// changes, and nothing happens for an index out of range).
 #[inline(always)]
 pub fn prefetch_pose(bodies: &[RigidBody], i: usize) {
     if let Some(body) = bodies.get(i) {

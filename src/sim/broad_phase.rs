@@ -167,7 +167,7 @@ impl BroadPhase {
         self.lookahead = PROXY_LOOKAHEAD_STEPS * dt;
         let lookahead = self.lookahead;
         let moved = cleared(&mut self.moved, n);
-        // The bodies' states, read once here (a pass over 100,000 bodies of 248 bytes each
+        // The bodies' states, read once here (a pass over 100,000 bodies of 272 bytes each
         // costs a millisecond where they do not fit the cache).
         self.is_awake.resize(n, false);
         let states = (&mut self.is_awake, cleared(&mut self.active, n));

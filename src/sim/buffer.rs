@@ -76,22 +76,24 @@ pub fn prefetch<T>(item: *const T) {
     prefetch_bytes(item.cast(), std::mem::size_of::<T>());
 }
 
-/// [`prefetch`] for the first `bytes` bytes at `start` only (the lines they touch).
+/// [`prefetch`] for the `bytes` bytes at `start` only: each 64-byte line they touch, once.
 #[inline(always)]
 pub fn prefetch_bytes(start: *const u8, bytes: usize) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        let first = start.cast::<i8>();
-        // The last byte's line too, where `start` is not at a line's start.
-        let lines = (0..bytes)
-            .step_by(64)
-            .chain((bytes > 0).then_some(bytes - 1));
-        for offset in lines {
-            // SAFETY: a prefetch reads nothing and cannot fault.
+        // From the start of `start`'s line: an item that straddles a line boundary touches one
+        // line more than its size in lines.
+        let skew = start.addr() % 64;
+        let first = start.wrapping_sub(skew).cast::<i8>();
+        for offset in (0..skew + bytes).step_by(64) {
+            // SAFETY: PREFETCHh has no architectural effect and raises no exception, whatever
+            // the address; x86-64 always has it (SSE).
             unsafe { _mm_prefetch::<_MM_HINT_T0>(first.wrapping_add(offset)) };
         }
     }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (start, bytes);
 }
 
 #[cfg(test)]

@@ -119,7 +119,7 @@ impl ContactStage {
         stats: &mut StepStats,
     ) {
         let Bodies { bodies, shapes } = world;
-        // Read from a byte per body instead of the bodies (248 bytes each): no contact changes
+        // Read from a byte per body instead of the bodies (272 bytes each): no contact changes
         // them, and at scatter-100000 the resolution loop missed the cache on every body it read.
         let flags: Vec<u8> = bodies.iter().map(collision_flags).collect();
         let mut queue = broad.candidate_pairs(
@@ -217,15 +217,15 @@ fn precompute(
     parallel::extend_map(out, candidates.par_iter(), 16, detect);
 }
 
-/// Pairs ahead of the loop whose boxes [`resolve_in_order`] asks the cache for.
+/// Candidates past the loop's next whose boxes [`resolve_in_order`] asks the cache for.
 const BOX_PREFETCH_DISTANCE: usize = 8;
-/// Pairs ahead of the loop whose bodies it asks the cache for (their boxes asked for before).
+/// Candidates past the loop's next whose bodies it asks the cache for (boxes asked for before).
 const BODY_PREFETCH_DISTANCE: usize = 4;
-/// Bytes of bodies up to which the loop does not ask for them ahead: they stay in the caches.
-/// Measured on one thread (`tumble run scatter-N --steps 520 --json`, interleaved): asked for,
-/// scatter-30000's step (9 MB of bodies) 9.0-10.0 -> 8.6-8.9 ms and scatter-100000's (31 MB)
-/// 35.6-36.2 -> 32.2-32.3, but scatter-10000's (3 MB) 2.28 -> 2.39 and sparse-1000's 0.16 ->
-/// 0.18: the extra box test and hints cost more than the waits they save there.
+/// Bytes of bodies up to which the loop does not ask for them ahead, chosen between two
+/// measurements on this project's 2-core machine (32 MiB of L3; docs/scale.md, "Stop 67"):
+/// asked for, scatter-30000's step (8 MB of bodies) and scatter-100000's (27 MB) took less
+/// time, scatter-10000's (3 MB) and sparse-1000's more: where the bodies stay in the caches, the
+/// extra box test and hints cost more than the waits they save.
 const BODIES_IN_CACHE: usize = 6 << 20;
 
 /// Sequential resolution in pair order. A pair whose bodies a resolution moved is tested again
@@ -243,13 +243,16 @@ fn resolve_in_order(
     let mut moved = vec![false; bodies.len()];
     let mut reached = Reached::default();
     let mut narrow = SampledStage::new(Stage::NarrowPhase);
-    // Only where the loop runs the narrow phase itself (not precomputed on other threads: there
-    // the hints for pairs already computed cost scatter-100000 1.5 ms a step on two threads).
-    let ask_for_bodies = precomputed.is_empty() && std::mem::size_of_val(bodies) > BODIES_IN_CACHE;
+    // The hints below only where the loop runs the narrow phase itself (on one thread, or where
+    // the last step's precomputation went mostly stale): where it was precomputed on other
+    // threads, they cost scatter-100000's loop 0.4 ms a step on two threads for the boxes and
+    // 1.5 ms for the bodies (docs/scale.md, "Stop 67").
+    let detects = precomputed.is_empty();
+    let ask_for_bodies = detects && std::mem::size_of_val(bodies) > BODIES_IN_CACHE;
     while let Some(((i, j), source)) = queue.pop() {
-        // The boxes of a pair a few places on, which it reads if its bodies have moved: at
-        // 100,000 bodies (19 MB of boxes) the box test of such a pair waited on memory.
-        if let Some((a, b)) = queue.candidate_ahead(BOX_PREFETCH_DISTANCE) {
+        // The boxes of a pair a few places on, which the loop's box test reads: at 100,000
+        // bodies (4.8 MB of boxes, beside 27 MB of bodies) that test waited on memory.
+        if detects && let Some((a, b)) = queue.candidate_ahead(BOX_PREFETCH_DISTANCE) {
             broad.prefetch_boxes(a, b);
         }
         // Nearer, with its boxes in the cache: the bodies of a pair whose boxes overlap, which
