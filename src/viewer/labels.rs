@@ -11,6 +11,11 @@ use egui::{Color32, RichText};
 /// from its right edge.
 pub const LABEL_MARGIN: [f32; 2] = [10.0, 8.0];
 
+/// The widest a label may be in a pane `pane_width` wide (pixels or points), at least 1.
+pub fn label_width(pane_width: f32) -> f32 {
+    (pane_width - 2.0 * LABEL_MARGIN[0]).max(1.0)
+}
+
 /// A label and where its top left corner goes (pixels of the frame, or points of the window).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Label {
@@ -55,7 +60,7 @@ impl Label {
                 let mut label = Label::of_lane(k, world, last, ghost);
                 let [x, y] = LABEL_MARGIN;
                 label.pos = [pane.rect[0] + x, pane.rect[1] + y];
-                label.width = pane.rect[2] - 2.0 * x;
+                label.width = label_width(pane.rect[2]);
                 labels.push(label);
             }
         }

@@ -2,7 +2,7 @@
 //! live statistics and plots; and the overlay over the 3D view with each pane's label.
 
 use super::compare::{self, Layout};
-use super::labels::{LABEL_MARGIN, Label};
+use super::labels::{LABEL_MARGIN, Label, label_width};
 use super::renderer::DrawOptions;
 use super::session::{Lane, Session};
 use crate::sim::settings::Solver;
@@ -887,7 +887,7 @@ pub fn overlay(
             .show(ctx, |ui| {
                 // Lines longer than their pane end in "..." rather than run into the next pane
                 // or under the panel.
-                ui.set_max_width((pane.rect[2] - 2.0 * LABEL_MARGIN[0]).max(1.0));
+                ui.set_max_width(label_width(pane.rect[2]));
                 ui.style_mut().wrap_mode = Some(egui::TextWrapMode::Truncate);
                 if k == 0 {
                     status_lines(ui, session);
