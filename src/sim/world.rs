@@ -2,7 +2,7 @@
 //! them with [`World::step`], which reads as the list of its stages.
 
 use super::aabb::{Aabb, body_aabb};
-use super::body::{RigidBody, any_awake, may_collide};
+use super::body::{RigidBody, any_awake};
 use super::broad_phase::BroadPhase;
 use super::constraint::DistanceConstraint;
 use super::coursework::contact_stage::{
@@ -303,9 +303,7 @@ impl World {
     pub fn current_contacts(&self) -> Vec<(usize, Option<usize>, Contact)> {
         let (bodies, shapes) = (&self.bodies, &self.shapes);
         let mut broad = self.broad_phase.clone();
-        broad.update_boxes(bodies, shapes);
-        let keep = |i: usize, j: usize| may_collide(&bodies[i], &bodies[j]);
-        let mut queue = broad.candidate_pairs(bodies, shapes, 0.0, keep, &mut 0);
+        let mut queue = broad.candidate_pairs((bodies, shapes), 0.0, &mut Vec::new(), &mut 0);
         let patches = self.settings.contact_patches;
         let mut out = Vec::new();
         while let Some(((i, j), _)) = queue.pop() {

@@ -3,7 +3,7 @@
 //! poses left by the pairs before it), then every body against the ground plane.
 
 use super::contact::{ContactParams, resolve_contact};
-use crate::sim::body::{RigidBody, collision_flags, flags_may_collide, may_collide, prefetch_pose};
+use crate::sim::body::{RigidBody, flags_may_collide, may_collide, prefetch_pose};
 use crate::sim::broad_phase::BroadPhase;
 use crate::sim::constraint::pair_mut;
 use crate::sim::narrow_phase::{
@@ -29,6 +29,8 @@ pub struct ContactStage {
     /// and faulted in page by page (pile-10000: 140,000 page faults in 120 steps, 21,000 on one
     /// thread).
     precomputed: Vec<Option<Detection>>,
+    /// The bodies' [`collision_flags`] as of the step's broad phase, kept for its room.
+    flags: Vec<u8>,
 }
 
 /// Candidate pairs the sequential resolution tested, and how many of them had a body that an
@@ -103,9 +105,11 @@ impl ContactStage {
         stats: &mut StepStats,
     ) {
         watch.enter(Stage::BroadPhase);
-        broad.update_boxes(world.bodies, world.shapes);
         match ctx.settings.broad_phase {
-            BroadPhaseKind::AllPairs => all_pairs(ctx, world, broad, watch, stats),
+            BroadPhaseKind::AllPairs => {
+                broad.update_boxes(world.bodies, world.shapes);
+                all_pairs(ctx, world, broad, watch, stats)
+            }
             BroadPhaseKind::Grid => self.grid_pairs(ctx, world, broad, watch, stats),
         }
     }
@@ -121,14 +125,9 @@ impl ContactStage {
         let Bodies { bodies, shapes } = world;
         // Read from a byte per body instead of the bodies (272 bytes each): no contact changes
         // them, and at scatter-100000 the resolution loop missed the cache on every body it read.
-        let flags: Vec<u8> = bodies.iter().map(collision_flags).collect();
-        let mut queue = broad.candidate_pairs(
-            bodies,
-            shapes,
-            ctx.dt,
-            |i, j| flags_may_collide(flags[i], flags[j]),
-            &mut stats.pairs_tested,
-        );
+        let mut flags = std::mem::take(&mut self.flags);
+        let tested = &mut stats.pairs_tested;
+        let mut queue = broad.candidate_pairs((bodies, shapes), ctx.dt, &mut flags, tested);
         watch.enter(Stage::NarrowPhase);
         // Skipped (each pair computed when it is reached) on one thread, or when too many of
         // last step's precomputed contacts went stale: results are the same either way.
@@ -157,6 +156,7 @@ impl ContactStage {
         );
         self.stale_share = reached.stale as f64 / reached.tested.max(1) as f64;
         self.precomputed = precomputed;
+        self.flags = flags;
     }
 }
 
