@@ -2,47 +2,25 @@
 //! to date one body at a time while contacts are being resolved.
 
 use super::aabb::Aabb;
+use super::buffer;
+use super::cell_table::CellTable;
 use super::parallel;
 use glam::DVec3;
 use rayon::prelude::*;
-use smallvec::SmallVec;
-use std::collections::HashMap;
-use std::hash::{BuildHasherDefault, Hasher};
 
-/// Hasher for cell keys ([`Grid::key`]: x, y and z in 21 bits each, z lowest): the (x, y) part
-/// mixed by MurmurHash3's finaliser, the z cell added unmixed. Deterministic across runs, and
-/// the cells along z of one (x, y) land in neighbouring buckets: the table indexes by the low
-/// bits, a body's cells are walked z fastest, and bodies next to each other in index order
-/// (generated scenes lay them out along z) touch neighbouring buckets, where a full mix sent
-/// every cell to its own cache line.
-#[derive(Default)]
-pub struct CellHasher(u64);
-
-impl Hasher for CellHasher {
-    fn finish(&self) -> u64 {
-        const Z_BITS: u32 = 21;
-        let mut h = self.0 >> Z_BITS;
-        h ^= h >> 33;
-        h = h.wrapping_mul(0xff51_afd7_ed55_8ccd);
-        h ^= h >> 33;
-        h.wrapping_add(self.0 & ((1 << Z_BITS) - 1))
-    }
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.write_u64(b as u64);
-        }
-    }
-    /// Cell keys are written once: the value is kept as it is for [`CellHasher::finish`].
-    fn write_u64(&mut self, value: u64) {
-        self.0 = self.0.rotate_left(21) ^ value;
-    }
+/// The hash of a cell key ([`Grid::key`]: x, y and z in 21 bits each, z lowest): all but the
+/// lowest bit mixed by MurmurHash3's finaliser, shifted up, and that bit kept, so that the two
+/// cells z = 2k and 2k + 1 of one (x, y), which a body often spans both of (its cells are walked
+/// z fastest), have neighbouring slots in [`CellTable`]. Deterministic across runs. The z cell
+/// added unmixed, as for std's table, made runs of hundreds of slots under linear probing
+/// (scatter-100000's rows of bodies along z).
+pub fn cell_hash(key: u64) -> u64 {
+    let mut h = key >> 1;
+    h ^= h >> 33;
+    h = h.wrapping_mul(0xff51_afd7_ed55_8ccd);
+    h ^= h >> 33;
+    h << 1 | (key & 1)
 }
-
-/// A cell's entries: each body's index in the low bits and, in the top three, whether the cell
-/// is the lowest of the body's range along x, y and z ([`CellEntry`]).
-/// Up to four entries are held in the map itself: most cells hold one body, and a `Vec` each
-/// (its header and a heap block) made the grid the largest part of scatter-100000's peak heap.
-type CellMap = HashMap<u64, SmallVec<[u32; 4]>, BuildHasherDefault<CellHasher>>;
 
 /// One body in one cell. Two bodies sharing a cell meet there first when, along each axis, the
 /// cell is the lowest of one of their ranges (the first shared cell is the maximum of the two
@@ -94,7 +72,14 @@ fn cell_of(v: f64) -> i32 {
 #[derive(Debug, Default, Clone)]
 pub struct Grid {
     cell_size: f64,
-    cells: CellMap,
+    /// Each cell's entries: each body's index in the low bits and, in the top three, whether
+    /// the cell is the lowest of the body's range along x, y and z ([`CellEntry`]). Up to four
+    /// are held in the table itself: most cells hold one body, and a `Vec` each (its header and
+    /// a heap block) made the grid the largest part of scatter-100000's peak heap.
+    cells: CellTable,
+    /// Bodies in the grid from which it asks the cache ahead ([`PREFETCH_FROM_BODIES`]; tests
+    /// take both paths).
+    hints_from: usize,
     /// Cell range (min, max corner) each body was inserted with; None for oversized bodies
     /// and bodies not in the grid.
     ranges: Vec<Option<(Cell, Cell)>>,
@@ -120,6 +105,18 @@ pub struct Grid {
 /// scatter-10000 with either solver; 0.3 and 1.0 were alike there (few steps pass 0.3).
 const REFRESH_LIMIT: f64 = 0.3;
 
+/// Bodies in the grid from which [`Grid::sync`] and [`Grid::pairs_of_chunk`] ask the cache
+/// ahead. Below, the cells and boxes sit in the caches and the hints only cost instructions:
+/// asked for at every size, sparse-1000's step took 11 % more instructions (callgrind) and
+/// scatter-10000's was no faster (docs/scale.md, "Stop 68").
+const PREFETCH_FROM_BODIES: usize = 20_000;
+
+/// Changed bodies ahead of its updates whose cells [`Grid::sync`] asks the cache for.
+const SYNC_AHEAD: usize = 4;
+
+/// Dirty bodies between the stages of [`Grid::pairs_of_chunk`].
+const STAGE_LAG: usize = 2;
+
 impl Grid {
     /// A grid whose cells are about the size of a typical body.
     pub fn new(cell_size: f64) -> Self {
@@ -129,6 +126,7 @@ impl Grid {
             } else {
                 1.0
             },
+            hints_from: PREFETCH_FROM_BODIES,
             ..Default::default()
         }
     }
@@ -175,7 +173,7 @@ impl Grid {
     pub fn rebuild(&mut self, aabbs: &[Aabb], active: &[bool]) {
         // Cells left empty by the last step are dropped, so the map does not grow with every
         // cell a body ever passed through; the others keep their allocation.
-        self.cells.retain(|_, list| {
+        self.cells.retain(|list| {
             let keep = !list.is_empty();
             list.clear();
             keep
@@ -206,19 +204,55 @@ impl Grid {
         if self.present.len() != aabbs.len() {
             return self.rebuild(aabbs, active);
         }
+        // With many bodies, a second cursor runs [`SYNC_AHEAD`] changed bodies ahead, asking the
+        // cache for the slots of their old and new cells, which their update reads.
+        let window = if aabbs.len() >= self.hints_from {
+            SYNC_AHEAD
+        } else {
+            0
+        };
+        let (mut ahead, mut asked) = (0, 0);
         for (index, aabb) in aabbs.iter().enumerate() {
-            if active[index] {
-                if moved[index] || !self.present[index] {
-                    self.update(index, aabb);
+            while asked < window && ahead < aabbs.len() {
+                if self.changes(ahead, active, moved) {
+                    self.prefetch_cells(ahead, &aabbs[ahead]);
+                    asked += 1;
                 }
-            } else if self.present[index] {
+                ahead += 1;
+            }
+            if !self.changes(index, active, moved) {
+                continue;
+            }
+            // Counted by the cursor ahead, where it runs.
+            asked = asked.saturating_sub(1);
+            if active[index] {
+                self.update(index, aabb);
+            } else {
                 self.take_out(index);
             }
         }
         // Cells emptied by bodies that moved on are dropped once they outnumber the bodies,
         // so long runs do not grow the map.
         if self.cells.len() > 8 * aabbs.len() + 1024 {
-            self.cells.retain(|_, list| !list.is_empty());
+            self.cells.retain(|list| !list.is_empty());
+        }
+    }
+
+    /// Whether [`Grid::sync`] changes body `index`: moved or new in the grid, or leaving it.
+    fn changes(&self, index: usize, active: &[bool], moved: &[bool]) -> bool {
+        match active[index] {
+            true => moved[index] || !self.present[index],
+            false => self.present[index],
+        }
+    }
+
+    /// Asks the cache for the slots of the cells body `index` is in and of those its new box
+    /// `aabb` spans (a hint: nothing changes).
+    fn prefetch_cells(&self, index: usize, aabb: &Aabb) {
+        let old = self.ranges[index];
+        let new = self.range(aabb).filter(|&new| Some(new) != old);
+        for range in [old, new].into_iter().flatten() {
+            Self::for_cells(range, |key, _| self.cells.prefetch(key));
         }
     }
 
@@ -236,7 +270,7 @@ impl Grid {
             Some(range) => {
                 let cells = &mut self.cells;
                 Self::for_cells(range, |key, _| {
-                    if let Some(list) = cells.get_mut(&key) {
+                    if let Some(list) = cells.get_mut(key) {
                         list.retain(|e| CellEntry(*e).body() as usize != index);
                     }
                 });
@@ -255,8 +289,7 @@ impl Grid {
                 self.ranges[index] = Some(range);
                 let cells = &mut self.cells;
                 Self::for_cells(range, |key, lowest| {
-                    let list = cells.entry(key).or_default();
-                    list.push(CellEntry::new(index, lowest).0);
+                    cells.list_mut(key).push(CellEntry::new(index, lowest).0);
                 });
             }
             None => self.oversized.push(index as u32),
@@ -310,7 +343,7 @@ impl Grid {
     /// cells holding two bodies or more are visited, in parallel. Returns the pairs and the
     /// number of box tests.
     fn walk_crowded_cells(&self, aabbs: &[Aabb]) -> Found {
-        let crowded: Vec<&[u32]> = (self.cells.values())
+        let crowded: Vec<&[u32]> = (self.cells.lists())
             .filter(|list| list.len() > 1)
             .map(|list| list.as_slice())
             .collect();
@@ -352,8 +385,12 @@ impl Grid {
         let mut fresh: Vec<Found> = Vec::new();
         parallel::extend_map(&mut fresh, self.dirty.par_chunks(64), 1, |chunk| {
             let mut found = (Vec::new(), 0);
-            for &d in chunk.iter().filter(|&&d| self.present[d as usize]) {
-                self.pairs_of(d as usize, aabbs, &mut found);
+            if self.present.len() >= self.hints_from {
+                self.pairs_of_chunk(chunk, aabbs, &mut found);
+            } else {
+                for &d in chunk.iter().filter(|&&d| self.present[d as usize]) {
+                    self.pairs_of(d as usize, aabbs, &mut found);
+                }
             }
             found
         });
@@ -365,6 +402,39 @@ impl Grid {
             .retain(|&(i, j)| !is_dirty[i as usize] && !is_dirty[j as usize]);
         self.pairs = merge_sorted(&self.pairs, &fresh);
         tested
+    }
+
+    /// [`Grid::pairs_of`] each body of `chunk` in the grid, with the cache asked ahead in four
+    /// stages, each for what the next one reads: for the body's cell range, its cells' slots,
+    /// their spilled lists and its partners' boxes, [`STAGE_LAG`] bodies apart. At 100,000
+    /// bodies, none of these sit in the caches, and `pairs_of` waited on each in turn.
+    fn pairs_of_chunk(&self, chunk: &[u32], aabbs: &[Aabb], found: &mut Found) {
+        for i in 0..chunk.len() + 4 * STAGE_LAG {
+            let body = |stage: usize| i.checked_sub(stage * STAGE_LAG).and_then(|k| chunk.get(k));
+            let range = |stage: usize| body(stage).and_then(|&d| self.ranges[d as usize]);
+            if let Some(&d) = body(0) {
+                buffer::prefetch(&self.ranges[d as usize]);
+            }
+            if let Some(range) = range(1) {
+                Self::for_cells(range, |key, _| self.cells.prefetch(key));
+            }
+            if let Some(range) = range(2) {
+                Self::for_cells(range, |key, _| {
+                    let list = self.cells.get(key);
+                    buffer::prefetch_bytes(list.as_ptr().cast(), size_of_val(list));
+                });
+            }
+            if let (Some(&d), Some(range)) = (body(3), range(3)) {
+                self.for_each_in_cells(d as usize, range, |b, first_meeting| {
+                    if first_meeting {
+                        buffer::prefetch(&aabbs[b]);
+                    }
+                });
+            }
+            if let Some(&d) = body(4).filter(|&&d| self.present[d as usize]) {
+                self.pairs_of(d as usize, aabbs, found);
+            }
+        }
     }
 
     /// The pairs of dirty body `d` (in the grid) whose boxes overlap, each found once: a partner
@@ -388,13 +458,7 @@ impl Grid {
         mut f: impl FnMut(usize, bool),
     ) {
         match range {
-            Some(range) => Self::for_cells(range, |key, lowest| {
-                let me = CellEntry::new(index, lowest);
-                for &e in self.cells.get(&key).into_iter().flatten() {
-                    let e = CellEntry(e);
-                    f(e.body() as usize, me.first_meeting(e));
-                }
-            }),
+            Some(range) => self.for_each_in_cells(index, range, &mut f),
             None => {
                 // An oversized body may touch anything.
                 for (b, range) in self.ranges.iter().enumerate() {
@@ -407,6 +471,17 @@ impl Grid {
         for &o in &self.oversized {
             f(o as usize, true);
         }
+    }
+
+    /// [`Grid::for_each_candidate`] for a body in cells, the oversized bodies left out.
+    fn for_each_in_cells(&self, index: usize, range: (Cell, Cell), mut f: impl FnMut(usize, bool)) {
+        Self::for_cells(range, |key, lowest| {
+            let me = CellEntry::new(index, lowest);
+            for &e in self.cells.get(key) {
+                let e = CellEntry(e);
+                f(e.body() as usize, me.first_meeting(e));
+            }
+        });
     }
 
     /// Bodies (other than `index`) whose boxes overlap `aabbs[index]`, in ascending order.
@@ -551,12 +626,16 @@ mod tests {
             }
             pairs
         };
-        let mut grid = Grid::new(4.0);
-        grid.sync(&boxes, &active, &vec![true; n]);
+        // The same moves on a grid that asks the cache ahead at every size.
+        let mut grids = [Grid::new(4.0), Grid::new(4.0)];
+        grids[1].hints_from = 0;
         let mut tested = 0;
-        let first = grid.overlapping_pairs(&boxes, keep, &mut tested);
-        assert!(first.len() > 1000, "{}", first.len());
-        assert_eq!(first, expected(&boxes, &active));
+        for grid in &mut grids {
+            grid.sync(&boxes, &active, &vec![true; n]);
+            let first = grid.overlapping_pairs(&boxes, keep, &mut tested);
+            assert!(first.len() > 1000, "{}", first.len());
+            assert_eq!(first, expected(&boxes, &active));
+        }
         // Rounds of moves: a third of the bodies (the crowded cells walked again), then a few
         // (their pairs refreshed), some left out and some brought back, and single bodies moved
         // by `update` between syncs, as contacts move them.
@@ -574,16 +653,26 @@ mod tests {
                 .iter_mut()
                 .enumerate()
                 .for_each(|(k, a)| *a = k % 17 != 3 + round);
-            grid.sync(&boxes, &active, &moved);
-            for k in [11, 500, 89 * 3, 1199].into_iter().filter(|&k| active[k]) {
-                boxes[k].max += DVec3::splat(2.0 * next());
-                grid.update(k, &boxes[k]);
+            let grown: Vec<(usize, f64)> = [11, 500, 89 * 3, 1199]
+                .into_iter()
+                .filter(|&k| active[k])
+                .map(|k| (k, 2.0 * next()))
+                .collect();
+            let mut moved_boxes = boxes.clone();
+            for (g, grid) in grids.iter_mut().enumerate() {
+                moved_boxes.clone_from(&boxes);
+                grid.sync(&moved_boxes, &active, &moved);
+                for &(k, by) in &grown {
+                    moved_boxes[k].max += DVec3::splat(by);
+                    grid.update(k, &moved_boxes[k]);
+                }
+                assert_eq!(
+                    grid.overlapping_pairs(&moved_boxes, keep, &mut tested),
+                    expected(&moved_boxes, &active),
+                    "round {round}, grid {g}"
+                );
             }
-            assert_eq!(
-                grid.overlapping_pairs(&boxes, keep, &mut tested),
-                expected(&boxes, &active),
-                "round {round}"
-            );
+            boxes = moved_boxes;
         }
     }
 }

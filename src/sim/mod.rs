@@ -9,6 +9,7 @@ pub mod aabb;
 pub mod body;
 pub mod broad_phase;
 pub mod buffer;
+pub mod cell_table;
 pub mod constraint;
 pub mod coursework;
 pub mod grab;
