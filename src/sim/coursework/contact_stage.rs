@@ -316,7 +316,10 @@ pub fn resolve_ground_contacts(
     let Bodies { bodies, shapes } = world;
     let mut ground = RigidBody::ground();
     for (index, body) in bodies.iter_mut().enumerate() {
-        if !body.is_dynamic() || boxes[index].min.y > 0.0 {
+        // The box first: it is read from 48 bytes a body, where the body's flag would bring
+        // every body's line into the cache (scatter-100000: 27 MB of bodies, most of them in
+        // the air).
+        if boxes[index].min.y > 0.0 || !body.is_dynamic() {
             continue;
         }
         let patches = ctx.settings.contact_patches;
