@@ -94,12 +94,13 @@ impl BroadPhase {
     /// `flags`), brings every active body's proxy into the grid, and returns the candidate pairs
     /// (i < j, sorted) whose proxies overlap and whose flags may collide, queued in order. One
     /// pass over the bodies does all three: at scatter-100000 each pass over its 27 MB of
-    /// bodies waited on memory, and the three apart took 5.5 ms a step on one thread (boxes 3.5,
-    /// flags 0.5, proxies 1.6; docs/scale.md). A proxy that still holds its body's box is kept,
-    /// and costs the grid nothing: the pairs are a superset of the fresh proxies' that the loop
-    /// filters by the boxes themselves, so the results are the same bit for bit (sparse-1000
-    /// re-hashed a third of its bodies every step). `tested` counts box tests. Proxies reach
-    /// [`PROXY_LOOKAHEAD_STEPS`] steps of `dt` ahead along their bodies' velocities.
+    /// bodies waited on memory, and the three apart took 5.5 ms a step on one thread (boxes
+    /// 3.5, flags 0.5, proxies 1.6; docs/scale.md, "Stop 68"). A proxy that still holds its
+    /// body's box is kept, and costs the grid nothing: the pairs are a superset of the fresh
+    /// proxies' that the loop filters by the boxes themselves, so the results are the same bit
+    /// for bit (sparse-1000 re-hashed a third of its bodies every step). `tested` counts box
+    /// tests. Proxies reach [`PROXY_LOOKAHEAD_STEPS`] steps of `dt` ahead along their bodies'
+    /// velocities.
     pub fn candidate_pairs(
         &mut self,
         (bodies, shapes): (&[RigidBody], &[Shape]),
@@ -111,8 +112,8 @@ impl BroadPhase {
         // The soft step computes every box again after this step has moved bodies under it.
         self.placed.clear();
         let n = bodies.len();
-        // Proxies made around boxes of this loop's (the soft step's are speculative).
-        let kept = self.proxies.len() == n && self.aabbs.len() == n;
+        // A proxy kept from an earlier step, of either solver, serves while it holds the box.
+        let kept = self.proxies.len() == n;
         self.aabbs.resize(n, Aabb::EMPTY);
         self.proxies.resize(n, Aabb::EMPTY);
         flags.resize(n, 0);

@@ -17,7 +17,8 @@ pub type CellList = SmallVec<[u32; 4]>;
 /// A slot's key when it holds no cell: cell keys take 63 bits.
 const VACANT: u64 = u64::MAX;
 
-/// One cell. Aligned to 32 bytes, its size, so that no slot straddles two cache lines.
+/// One cell. Aligned to 32 bytes, its size (with smallvec's `union`), so that no slot
+/// straddles two cache lines.
 #[derive(Clone, Debug)]
 #[repr(align(32))]
 struct Slot {
@@ -25,10 +26,16 @@ struct Slot {
     list: CellList,
 }
 
-const VACANT_SLOT: Slot = Slot {
-    key: VACANT,
-    list: SmallVec::new_const(),
-};
+const _: () = assert!(std::mem::size_of::<Slot>() == 32);
+
+impl Slot {
+    fn vacant() -> Self {
+        Self {
+            key: VACANT,
+            list: CellList::new(),
+        }
+    }
+}
 
 /// A map from cell keys to the bodies in them. A cell once made stays, its list maybe empty,
 /// until [`CellTable::retain`] drops it: probing needs no marks for removed keys.
@@ -70,17 +77,16 @@ impl CellTable {
 
     /// Cell `key`'s list, made empty where it was not held.
     pub fn list_mut(&mut self, key: u64) -> &mut CellList {
-        if (self.len + 1) * 4 > self.slots.len() * 3 {
+        let mut found = self.find(key);
+        if found.is_err() && (self.len + 1) * 4 > self.slots.len() * 3 {
             self.grow();
+            found = self.find(key);
         }
-        let slot = match self.find(key) {
-            Ok(slot) => slot,
-            Err(vacant) => {
-                self.slots[vacant].key = key;
-                self.len += 1;
-                vacant
-            }
-        };
+        let slot = found.unwrap_or_else(|vacant| {
+            self.slots[vacant].key = key;
+            self.len += 1;
+            vacant
+        });
         &mut self.slots[slot].list
     }
 
@@ -142,7 +148,8 @@ impl CellTable {
         self.place(held, size);
     }
 
-    /// The table made of the cells `held`, filled to between three eighths and three quarters.
+    /// The table made of the cells `held`, at most three quarters full (more than three
+    /// eighths, but for a few cells in the smallest table).
     fn refill(&mut self, held: Vec<Slot>) {
         let mut size = MIN_SLOTS;
         while held.len() * 4 > size * 3 {
@@ -153,7 +160,7 @@ impl CellTable {
 
     /// `size` slots (a power of two) holding the cells `held`.
     fn place(&mut self, held: Vec<Slot>, size: usize) {
-        self.slots = vec![VACANT_SLOT; size];
+        self.slots = vec![Slot::vacant(); size];
         self.len = held.len();
         for s in held {
             let vacant = self.find(s.key).expect_err("a key is held once");

@@ -77,8 +77,8 @@ pub struct Grid {
     /// are held in the table itself: most cells hold one body, and a `Vec` each (its header and
     /// a heap block) made the grid the largest part of scatter-100000's peak heap.
     cells: CellTable,
-    /// Bodies in the grid from which it asks the cache ahead ([`PREFETCH_FROM_BODIES`]; tests
-    /// take both paths).
+    /// Bodies in the grid from which it asks the cache ahead ([`PREFETCH_FROM_BODIES`] from
+    /// [`Grid::new`]; tests take both paths).
     hints_from: usize,
     /// Cell range (min, max corner) each body was inserted with; None for oversized bodies
     /// and bodies not in the grid.
@@ -231,9 +231,9 @@ impl Grid {
                 self.take_out(index);
             }
         }
-        // Cells emptied by bodies that moved on are dropped once they outnumber the bodies,
-        // so long runs do not grow the map.
-        if self.cells.len() > 8 * aabbs.len() + 1024 {
+        // Cells emptied by bodies that moved on are dropped once they outnumber the bodies four
+        // to one, so long runs do not grow the table (at 100,000 bodies, 32 MB at most).
+        if self.cells.len() > 4 * aabbs.len() + 1024 {
             self.cells.retain(|list| !list.is_empty());
         }
     }

@@ -29,7 +29,8 @@ pub struct ContactStage {
     /// and faulted in page by page (pile-10000: 140,000 page faults in 120 steps, 21,000 on one
     /// thread).
     precomputed: Vec<Option<Detection>>,
-    /// The bodies' [`collision_flags`] as of the step's broad phase, kept for its room.
+    /// The bodies' [`collision_flags`](crate::sim::body::collision_flags) as of the step's
+    /// broad phase, kept for its room.
     flags: Vec<u8>,
 }
 
