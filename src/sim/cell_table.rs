@@ -28,6 +28,20 @@ struct Slot {
 
 const _: () = assert!(std::mem::size_of::<Slot>() == 32);
 
+/// The hash of a cell key (the grid's keys: x, y and z in 21 bits each, z lowest): all but the
+/// lowest bit mixed by MurmurHash3's finaliser, shifted up, and that bit kept, so that the two
+/// cells z = 2k and 2k + 1 of one (x, y), which a body often spans both of (its cells are walked
+/// z fastest), have neighbouring slots. Deterministic across runs. The z cell added unmixed, as
+/// the grid's hasher did for std's table, made runs of hundreds of slots under linear probing
+/// (scatter-100000's rows of bodies along z).
+fn cell_hash(key: u64) -> u64 {
+    let mut h = key >> 1;
+    h ^= h >> 33;
+    h = h.wrapping_mul(0xff51_afd7_ed55_8ccd);
+    h ^= h >> 33;
+    h << 1 | (key & 1)
+}
+
 impl Slot {
     fn vacant() -> Self {
         Self {
@@ -108,18 +122,18 @@ impl CellTable {
 
     /// Keeps the cells whose lists `keep` (which may change them) says to keep, in a table sized
     /// for them.
-    pub fn retain(&mut self, mut keep: impl FnMut(&mut CellList) -> bool) {
-        let kept: Vec<Slot> = std::mem::take(&mut self.slots)
-            .into_iter()
-            .filter_map(|mut s| (s.key != VACANT && keep(&mut s.list)).then_some(s))
-            .collect();
-        self.refill(kept);
+    pub fn retain(&mut self, keep: impl FnMut(&mut CellList) -> bool) {
+        let kept = self.take_held(keep);
+        let mut size = MIN_SLOTS;
+        while kept.len() * 4 > size * 3 {
+            size *= 2;
+        }
+        self.place(kept, size);
     }
 
-    /// The slot where a lookup of `key` starts: [`super::grid::cell_hash`] masked to the table's
-    /// size.
+    /// The slot where a lookup of `key` starts: [`cell_hash`] masked to the table's size.
     fn home(&self, key: u64) -> usize {
-        super::grid::cell_hash(key) as usize & (self.slots.len() - 1)
+        cell_hash(key) as usize & (self.slots.len() - 1)
     }
 
     /// The slot holding `key`, or the vacant slot where it would go.
@@ -140,22 +154,17 @@ impl CellTable {
 
     /// Twice the slots, every cell placed again.
     fn grow(&mut self) {
-        let held: Vec<Slot> = std::mem::take(&mut self.slots)
-            .into_iter()
-            .filter(|s| s.key != VACANT)
-            .collect();
-        let size = (2 * (held.len() + 1)).next_power_of_two().max(MIN_SLOTS);
+        let size = (2 * self.slots.len()).max(MIN_SLOTS);
+        let held = self.take_held(|_| true);
         self.place(held, size);
     }
 
-    /// The table made of the cells `held`, at most three quarters full (more than three
-    /// eighths, but for a few cells in the smallest table).
-    fn refill(&mut self, held: Vec<Slot>) {
-        let mut size = MIN_SLOTS;
-        while held.len() * 4 > size * 3 {
-            size *= 2;
-        }
-        self.place(held, size);
+    /// The cells held whose lists `keep` says to keep, the table left without slots.
+    fn take_held(&mut self, mut keep: impl FnMut(&mut CellList) -> bool) -> Vec<Slot> {
+        std::mem::take(&mut self.slots)
+            .into_iter()
+            .filter_map(|mut s| (s.key != VACANT && keep(&mut s.list)).then_some(s))
+            .collect()
     }
 
     /// `size` slots (a power of two) holding the cells `held`.

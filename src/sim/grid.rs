@@ -8,20 +8,6 @@ use super::parallel;
 use glam::DVec3;
 use rayon::prelude::*;
 
-/// The hash of a cell key ([`Grid::key`]: x, y and z in 21 bits each, z lowest): all but the
-/// lowest bit mixed by MurmurHash3's finaliser, shifted up, and that bit kept, so that the two
-/// cells z = 2k and 2k + 1 of one (x, y), which a body often spans both of (its cells are walked
-/// z fastest), have neighbouring slots in [`CellTable`]. Deterministic across runs. The z cell
-/// added unmixed, as for std's table, made runs of hundreds of slots under linear probing
-/// (scatter-100000's rows of bodies along z).
-pub fn cell_hash(key: u64) -> u64 {
-    let mut h = key >> 1;
-    h ^= h >> 33;
-    h = h.wrapping_mul(0xff51_afd7_ed55_8ccd);
-    h ^= h >> 33;
-    h << 1 | (key & 1)
-}
-
 /// One body in one cell. Two bodies sharing a cell meet there first when, along each axis, the
 /// cell is the lowest of one of their ranges (the first shared cell is the maximum of the two
 /// lowest corners): the walk decides that from the two entries alone, without looking up
