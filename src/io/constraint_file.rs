@@ -24,6 +24,11 @@ const CONSTRAINT_RECORD: RecordLayout = RecordLayout {
 
 pub fn parse_constraints(file: &Path, text: &str) -> Result<Records<ConstraintRecord>, LoadError> {
     let mut tokens = Tokens::new(file, text);
+    // A file with nothing in it (or comments only) holds no constraints: what a user who
+    // empties the file beside a scene means.
+    if tokens.peek().is_none() {
+        return Ok(Records::default());
+    }
     let count = tokens.count_records(
         "the number of constraints",
         &CONSTRAINT_RECORD,
@@ -53,16 +58,7 @@ pub fn parse_constraints(file: &Path, text: &str) -> Result<Records<ConstraintRe
             line,
         });
     }
-    if let Some(extra) = tokens.peek() {
-        let line = extra.line;
-        return Err(tokens.error(
-            line,
-            format!(
-                "the file declares {} but has more records after them",
-                super::counted(count as u64, "constraint", "constraints")
-            ),
-        ));
-    }
+    tokens.expect_end(&super::counted(count as u64, "constraint", "constraints"))?;
     Ok(Records {
         records,
         layout_warning: tokens.layout_warning(),

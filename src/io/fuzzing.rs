@@ -7,8 +7,9 @@ use crate::sim::settings::Settings;
 use crate::sim::shape::Shape;
 use std::path::Path;
 
-fn text(data: &[u8]) -> Option<&str> {
-    std::str::from_utf8(data).ok()
+/// The bytes as a file on disk is read: decoded as the readers take text.
+fn text(data: &[u8]) -> Option<String> {
+    crate::io::decode_text(Path::new("fuzz"), data.to_vec()).ok()
 }
 
 /// A mesh that loads becomes a shape, a body and a few simulated steps.
@@ -39,7 +40,7 @@ fn exercise_mesh(mesh: &crate::io::TetMesh) {
 
 pub fn medit(data: &[u8]) {
     if let Some(t) = text(data)
-        && let Ok(mesh) = parse_medit(Path::new("fuzz.mesh"), t)
+        && let Ok(mesh) = parse_medit(Path::new("fuzz.mesh"), &t)
     {
         exercise_mesh(&mesh);
     }
@@ -47,7 +48,7 @@ pub fn medit(data: &[u8]) {
 
 pub fn off(data: &[u8]) {
     if let Some(t) = text(data)
-        && let Ok(mesh) = parse_off(Path::new("fuzz.off"), t)
+        && let Ok(mesh) = parse_off(Path::new("fuzz.off"), &t)
     {
         exercise_mesh(&mesh);
     }
@@ -55,13 +56,13 @@ pub fn off(data: &[u8]) {
 
 pub fn scene(data: &[u8]) {
     if let Some(t) = text(data) {
-        let _ = parse_scene(Path::new("fuzz-scene.txt"), t);
+        let _ = parse_scene(Path::new("fuzz-scene.txt"), &t);
     }
 }
 
 pub fn constraints(data: &[u8]) {
     if let Some(t) = text(data) {
-        let _ = parse_constraints(Path::new("fuzz-constraints.txt"), t);
+        let _ = parse_constraints(Path::new("fuzz-constraints.txt"), &t);
     }
 }
 

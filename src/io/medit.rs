@@ -30,13 +30,18 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
     // Index checks wait until all sections are read: a file may list elements before vertices.
     let mut tet_lines = Vec::new();
     let mut tri_lines = Vec::new();
+    // The last section of records read: its keyword, the line of its count and the count. A
+    // record past the count (one added without raising the count) reads as a keyword.
+    let mut last: Option<(&str, usize, usize)> = None;
 
     while let Some(token) = tokens.peek() {
         let (written, line) = (token.text, token.line);
         let keyword = written.to_ascii_lowercase();
         tokens.next("a section keyword")?;
+        let count_line = tokens.line();
         match keyword.as_str() {
             "meshversionformatted" | "dimension" => {
+                last = None;
                 let (value, line) = tokens.index("a number after the keyword")?;
                 if keyword == "dimension" && value != 3 {
                     return Err(tokens.error(
@@ -52,6 +57,7 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
             "vertices" => {
                 read_vertices(&mut tokens, &mut mesh.vertices)?;
                 seen_vertices = true;
+                last = Some((written, count_line, mesh.vertices.len()));
             }
             "triangles" => {
                 let first = mesh.triangles.len();
@@ -65,23 +71,28 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
                 mesh.triangles[first..]
                     .iter_mut()
                     .for_each(|t| t.swap(1, 2));
+                last = Some((written, count_line, mesh.triangles.len() - first));
             }
             "tetrahedra" => {
+                let first = mesh.tetrahedra.len();
                 read_elements(
                     &mut tokens,
                     &TETRAHEDRON_RECORD,
                     &mut mesh.tetrahedra,
                     &mut tet_lines,
                 )?;
+                last = Some((written, count_line, mesh.tetrahedra.len() - first));
             }
-            "edges" => skip_records(&mut tokens, "the edge count", 3)?,
+            "edges" => {
+                let count = skip_records(&mut tokens, "the edge count", 3)?;
+                last = Some((written, count_line, count));
+            }
             "corners" | "ridges" | "requiredvertices" | "requirededges" | "requiredtriangles" => {
-                skip_records(&mut tokens, "the record count", 1)?
+                let count = skip_records(&mut tokens, "the record count", 1)?;
+                last = Some((written, count_line, count));
             }
             "end" => break,
-            _ => {
-                return Err(tokens.error(line, format!("unknown section '{written}' (expected Vertices, Triangles, Tetrahedra, Edges or End)")));
-            }
+            _ => return Err(unknown_section(&tokens, (written, line), last)),
         }
     }
 
@@ -205,15 +216,36 @@ fn check_indices(
     Ok(())
 }
 
-fn skip_records(tokens: &mut Tokens, what: &str, per_record: usize) -> Result<(), LoadError> {
+/// Skips a section of `count` records of `per_record` numbers; returns the count.
+fn skip_records(tokens: &mut Tokens, what: &str, per_record: usize) -> Result<usize, LoadError> {
     let count = tokens.count(what, per_record, MAX_MESH_ELEMENTS)?;
     for _ in 0..count * per_record {
         tokens.real("a record field")?;
     }
-    Ok(())
+    Ok(count)
 }
 
-/// Writes a mesh in the coursework's convention (triangles stored inward, as `parse_medit` expects).
+/// A word where a section keyword should be, `(written, line)`. A number there is most often
+/// a record past the count of the section before (`last`: its keyword, count line and count):
+/// a record added by hand without raising the count.
+fn unknown_section(
+    tokens: &Tokens,
+    (written, line): (&str, usize),
+    last: Option<(&str, usize, usize)>,
+) -> LoadError {
+    let expected = "expected Vertices, Triangles, Tetrahedra, Edges or End";
+    let message = match last {
+        Some((section, count_line, count)) if written.parse::<f64>().is_ok() => format!(
+            "a number, '{written}', where a section keyword should be ({expected}): is the \
+             {section} count on line {count_line} ({count}) smaller than the records under it?"
+        ),
+        _ => format!("unknown section '{written}' ({expected})"),
+    };
+    tokens.error(line, message)
+}
+
+/// Writes a mesh in the coursework's convention (triangles stored inward, as `parse_medit`
+/// expects).
 pub fn write_medit(mesh: &TetMesh) -> String {
     let mut out = String::from("MeshVersionFormatted 1\nDimension 3\n");
     let _ = writeln!(out, "Vertices\n{}", mesh.vertices.len());

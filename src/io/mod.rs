@@ -20,7 +20,7 @@ pub use constraint_file::{ConstraintRecord, parse_constraints};
 pub use medit::{parse_medit, write_medit};
 pub use off::parse_off;
 pub use scene_file::{SceneRecord, parse_scene};
-pub use tokens::line_at;
+pub use tokens::decode_text;
 
 use std::fmt;
 use std::path::{Path, PathBuf};

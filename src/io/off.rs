@@ -25,6 +25,7 @@ pub fn parse_off(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
         let found = header.text.to_string();
         return Err(tokens.error(line, format!("expected the 'OFF' header, found '{found}'")));
     }
+    let vertex_count_line = tokens.line();
     let vertex_count = tokens.count("the vertex count", 3, MAX_MESH_ELEMENTS)?;
     let (face_count, face_line) = tokens.index("the face count")?;
     // The edge count is optional (some exporters write only two numbers).
@@ -46,13 +47,17 @@ pub fn parse_off(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
         vertices.push(DVec3::new(x, y, z));
     }
     let mut triangles = Vec::with_capacity(face_count);
+    let vertex_count_at = (vertex_count, vertex_count_line);
     for _ in 0..face_count {
-        let (corners, line) = tokens.index("the number of corners of a face")?;
+        let line = tokens.line();
+        let corners = tokens
+            .index("the number of corners of a face")
+            .map_err(|e| with_vertex_hint(&tokens, e, vertex_count_at))?
+            .0;
         if !(3..=1024).contains(&corners) {
-            return Err(tokens.error(
-                line,
-                format!("a face needs 3 to 1024 corners, found {corners}"),
-            ));
+            let found = format!("a face needs 3 to 1024 corners, found {corners}");
+            let error = tokens.error(line, found);
+            return Err(with_vertex_hint(&tokens, error, vertex_count_at));
         }
         let mut polygon = Vec::with_capacity(corners);
         for _ in 0..corners {
@@ -70,6 +75,7 @@ pub fn parse_off(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
             triangles.push([polygon[0], polygon[k], polygon[k + 1]]);
         }
     }
+    tokens.expect_end(&super::counted(face_count as u64, "face", "faces"))?;
     if triangles.is_empty() {
         return Err(LoadError::new(file, None, "the surface has no faces"));
     }
@@ -77,6 +83,27 @@ pub fn parse_off(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
         return Err(LoadError::new(file, None, problem));
     }
     fan_tetrahedralise(file, vertices, triangles)
+}
+
+/// `error`, found where a face should begin, with a hint where its line holds three numbers,
+/// as a vertex does: the vertex count (`(count, line)`) is likely smaller than the vertices
+/// listed, and the first vertex past it was read as a face.
+fn with_vertex_hint(tokens: &Tokens, error: LoadError, (count, line): (usize, usize)) -> LoadError {
+    let Some(at) = error.line else {
+        return error;
+    };
+    let fields: Vec<&str> = tokens.fields_on(at).collect();
+    if fields.len() != 3 || fields.iter().any(|f| f.parse::<f64>().is_err()) {
+        return error;
+    }
+    let hint = format!(
+        "; line {at} holds three numbers, as a vertex does: is the vertex count on line {line} \
+         ({count}) smaller than the vertices listed?"
+    );
+    LoadError {
+        message: error.message + &hint,
+        ..error
+    }
 }
 
 /// Why the surface does not bound a volume once, if it does not: a face listed twice the same

@@ -70,16 +70,7 @@ pub fn parse_scene(file: &Path, text: &str) -> Result<Records<SceneRecord>, Load
             line,
         });
     }
-    if let Some(extra) = tokens.peek() {
-        let line = extra.line;
-        return Err(tokens.error(
-            line,
-            format!(
-                "the file declares {} but has more records after them",
-                super::counted(count as u64, "body", "bodies")
-            ),
-        ));
-    }
+    tokens.expect_end(&super::counted(count as u64, "body", "bodies"))?;
     Ok(Records {
         records,
         layout_warning: tokens.layout_warning(),

@@ -100,17 +100,7 @@ impl FileSource for Disk {
             ));
         }
         let bytes = read_at_most(path, limits::MAX_FILE_BYTES)?;
-        String::from_utf8(bytes).map_err(|e| {
-            let at = e.utf8_error().valid_up_to();
-            // The bytes before `at` are valid UTF-8, by `valid_up_to`'s contract.
-            let before = std::str::from_utf8(&e.as_bytes()[..at]).unwrap_or_default();
-            let line = crate::io::line_at(before, at);
-            LoadError::new(
-                path,
-                Some(line),
-                format!("not a text file (invalid UTF-8 at byte {at})"),
-            )
-        })
+        crate::io::decode_text(path, bytes)
     }
     /// A file, or a device or pipe (read up to the limit), not a folder.
     fn exists(&self, path: &Path) -> bool {

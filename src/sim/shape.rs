@@ -165,7 +165,7 @@ impl Shape {
             return Err(ShapeError::NonFinite);
         }
         let props = tet_mass_properties(&mesh.vertices, &mesh.tetrahedra, mesh.volumes);
-        check_mass_properties(&props, &mesh.vertices, mesh.volumes)?;
+        check_mass_properties(&props, (&mesh.vertices, &mesh.tetrahedra), mesh.volumes)?;
         let rest_vertices: Vec<DVec3> = mesh
             .vertices
             .iter()
@@ -202,19 +202,24 @@ impl Shape {
 /// volumes only) of an inertia that is not positive definite.
 fn check_mass_properties(
     props: &MassProperties,
-    vertices: &[DVec3],
+    (vertices, tetrahedra): (&[DVec3], &[[u32; 4]]),
     volumes: TetVolumes,
 ) -> Result<(), ShapeError> {
-    // The mesh's own size (half its box's longest side), not its distance from the origin:
-    // a unit tetrahedron at x = 10,000 was refused as degenerate against 1e-12 * 10,000^3.
-    // (The two are the same for a mesh centred on the origin, and the new one is the smaller
-    // elsewhere, so no mesh that loaded before is refused as degenerate; one under about 1e-98
-    // across, away from the origin, may now be refused as too small.)
-    let (low, high) = vertices.iter().fold(
+    // The solid's own size (half the longest side of its tetrahedra's box), not its distance
+    // from the origin: a unit tetrahedron at x = 10,000 was refused as degenerate against
+    // 1e-12 * 10,000^3. (The two are the same for a mesh centred on the origin, and the new one
+    // is the smaller elsewhere, so no mesh that loaded before is refused as degenerate; one
+    // under about 1e-98 across, away from the origin, may now be refused as too small.) Nor a
+    // vertex no tetrahedron uses: a box with one stray vertex at 1e6 was called degenerate.
+    let corners = tetrahedra
+        .iter()
+        .flatten()
+        .filter_map(|&i| vertices.get(i as usize));
+    let (low, high) = corners.fold(
         (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
         |(low, high), v| (low.min(*v), high.max(*v)),
     );
-    let scale = if vertices.is_empty() {
+    let scale = if tetrahedra.is_empty() {
         0.0
     } else {
         (0.5 * (high - low)).max_element()
