@@ -338,6 +338,31 @@ fn boxes_scene(count: usize) -> String {
     text
 }
 
+/// A scene written on Windows (a backslash in its mesh path, a Latin-1 accent in a comment)
+/// loads, and the mesh it loads is the one watched for changes.
+#[test]
+fn a_scene_written_on_windows_watches_the_mesh_it_loads() {
+    let dir = scratch("windows");
+    std::fs::create_dir_all(dir.join("meshes")).unwrap();
+    std::fs::rename(dir.join("box.mesh"), dir.join("meshes/box.mesh")).unwrap();
+    let path = dir.join("w-scene.txt");
+    let text = boxes_scene(1).replace("box.mesh", "meshes\\box.mesh");
+    std::fs::write(
+        &path,
+        [b"# caf\xe9\r\n".as_slice(), text.as_bytes()].concat(),
+    )
+    .unwrap();
+    let source = SceneSource::named(&path.to_string_lossy());
+    let s = Session::new(source.load(Settings::default()).unwrap(), source);
+    let watched: Vec<PathBuf> = s.watched_files().map(Path::to_path_buf).collect();
+    let mesh = dir.join("meshes/box.mesh");
+    assert!(
+        watched
+            .iter()
+            .any(|w| w.canonicalize().ok() == mesh.canonicalize().ok())
+    );
+}
+
 #[test]
 fn an_edited_scene_file_reloads_and_an_error_keeps_the_old_scene() {
     let dir = scratch("reload");

@@ -47,17 +47,19 @@ pub fn parse_off(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
         vertices.push(DVec3::new(x, y, z));
     }
     let mut triangles = Vec::with_capacity(face_count);
-    let vertex_count_at = (vertex_count, vertex_count_line);
-    for _ in 0..face_count {
+    for face in 0..face_count {
         let line = tokens.line();
+        // A vertex count too small shows at the first face: the next vertex is read as one.
+        let first =
+            (face == 0 && tokens.peek().is_some()).then_some((vertex_count, vertex_count_line));
+        let hint = |tokens: &Tokens, error| with_vertex_hint(tokens, error, first);
         let corners = tokens
             .index("the number of corners of a face")
-            .map_err(|e| with_vertex_hint(&tokens, e, vertex_count_at))?
+            .map_err(|e| hint(&tokens, e))?
             .0;
         if !(3..=1024).contains(&corners) {
             let found = format!("a face needs 3 to 1024 corners, found {corners}");
-            let error = tokens.error(line, found);
-            return Err(with_vertex_hint(&tokens, error, vertex_count_at));
+            return Err(hint(&tokens, tokens.error(line, found)));
         }
         let mut polygon = Vec::with_capacity(corners);
         for _ in 0..corners {
@@ -85,11 +87,11 @@ pub fn parse_off(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
     fan_tetrahedralise(file, vertices, triangles)
 }
 
-/// `error`, found where a face should begin, with a hint where its line holds three numbers,
-/// as a vertex does: the vertex count (`(count, line)`) is likely smaller than the vertices
-/// listed, and the first vertex past it was read as a face.
-fn with_vertex_hint(tokens: &Tokens, error: LoadError, (count, line): (usize, usize)) -> LoadError {
-    let Some(at) = error.line else {
+/// `error`, found where the first face should begin (`first`: the vertex count and its line),
+/// with a hint where its line holds three numbers, as a vertex does: the vertex count is likely
+/// smaller than the vertices listed, and the first vertex past it was read as a face.
+fn with_vertex_hint(tokens: &Tokens, error: LoadError, first: Option<(usize, usize)>) -> LoadError {
+    let (Some((count, line)), Some(at)) = (first, error.line) else {
         return error;
     };
     let fields: Vec<&str> = tokens.fields_on(at).collect();

@@ -50,9 +50,9 @@ pub struct Tokens<'a> {
     /// The first line of the current run of records that does not hold one whole record, named
     /// in every error on it or after it: how a record read out of step shows.
     layout_break: Option<LayoutBreak>,
-    /// The line of the last count read by [`Tokens::count_records`] (not [`Tokens::count`]'s,
-    /// which may share its line with other numbers).
-    count_line: Option<usize>,
+    /// The line of the last count read by [`Tokens::count_records`] and its records' width
+    /// (not [`Tokens::count`]'s, which may share its line with other numbers).
+    count_line: Option<(usize, usize)>,
 }
 
 /// The lines of `text`, each ended by `\n`, `\r\n` or a lone `\r` (the line end of classic
@@ -79,22 +79,27 @@ fn lines(text: &str) -> impl Iterator<Item = &str> {
 /// accent, say) may stand in `#` comments, which no reader looks at (as the coursework's byte
 /// stream readers take any); elsewhere, and for UTF-16 text (Windows Notepad's "Unicode",
 /// PowerShell's `>`), whose NUL bytes made words of garbage, the error says to save the file
-/// as UTF-8.
+/// as UTF-8. NUL or DOS end-of-file (Ctrl-Z) bytes that pad the end are no part of the text.
 pub fn decode_text(file: &Path, bytes: Vec<u8>) -> Result<String, LoadError> {
     let save_as = "save it as UTF-8";
     if looks_like_utf16(&bytes) {
         let message = format!("the file is UTF-16 text, which the readers do not take: {save_as}");
         return Err(LoadError::new(file, None, message));
     }
-    let text = match String::from_utf8(bytes) {
-        Ok(text) => text,
-        Err(e) => String::from_utf8_lossy(e.as_bytes()).into_owned(),
+    let (mut text, lossy) = match String::from_utf8(bytes) {
+        Ok(text) => (text, false),
+        Err(e) => (String::from_utf8_lossy(e.as_bytes()).into_owned(), true),
     };
-    let outside_comments = |line: &str| line.find('#').map_or(line, |at| &line[..at]).to_owned();
-    for (index, line) in lines(&text).map(outside_comments).enumerate() {
-        let problem = if line.contains('\u{fffd}') {
+    let padded = text.trim_end_matches(['\0', '\u{1a}']).len();
+    text.truncate(padded);
+    if !lossy && !text.contains('\0') {
+        return Ok(text);
+    }
+    for (index, line) in lines(&text).enumerate() {
+        let content = line.find('#').map_or(line, |at| &line[..at]);
+        let problem = if lossy && content.contains('\u{fffd}') {
             "bytes that are not UTF-8 text (a Latin-1 or Windows-1252 accent?)"
-        } else if line.contains('\0') {
+        } else if content.contains('\0') {
             "a NUL byte"
         } else {
             continue;
@@ -106,22 +111,25 @@ pub fn decode_text(file: &Path, bytes: Vec<u8>) -> Result<String, LoadError> {
     Ok(text)
 }
 
-/// A UTF-16 byte-order mark, or (without one) NUL bytes in most of the even or odd places of
-/// the first 64 bytes, as ASCII text in UTF-16 has.
+/// A UTF-16 byte-order mark, or (without one) a start of 64 bytes whose even or odd bytes are
+/// mostly NUL and the others mostly printable ASCII, as ASCII text in UTF-16 is (a binary file
+/// of small integers has the NULs, not the text).
 fn looks_like_utf16(bytes: &[u8]) -> bool {
     if bytes.starts_with(&[0xFF, 0xFE]) || bytes.starts_with(&[0xFE, 0xFF]) {
         return true;
     }
     let head = &bytes[..bytes.len().min(64)];
-    let nuls = |parity: usize| {
-        head.iter()
-            .skip(parity)
-            .step_by(2)
-            .filter(|&&b| b == 0)
-            .count()
-    };
     let pairs = head.len() / 2;
-    pairs >= 2 && (nuls(0).max(nuls(1)) * 4 >= pairs * 3)
+    let count = |parity: usize, test: fn(&u8) -> bool| {
+        let places = head.iter().skip(parity).step_by(2).take(pairs);
+        places.filter(|b| test(b)).count()
+    };
+    let mostly = |n: usize| pairs >= 2 && n * 4 >= pairs * 3;
+    let nul = |b: &u8| *b == 0;
+    let ascii = |b: &u8| b.is_ascii_graphic() || b.is_ascii_whitespace();
+    [(0, 1), (1, 0)]
+        .into_iter()
+        .any(|(zeros, text)| mostly(count(zeros, nul)) && mostly(count(text, ascii)))
 }
 
 impl<'a> Tokens<'a> {
@@ -163,24 +171,21 @@ impl<'a> Tokens<'a> {
     }
 
     /// Refuses words after the last of the `declared` records ("3 bodies"): a count smaller
-    /// than its records. Where the last count's line holds more than the count, the count line
-    /// may be missing, the first record's first field read as the count: said so.
+    /// than its records. Where the last count's line holds a whole record's fields, the count
+    /// line may be missing, the first record's first field read as the count: said so.
     pub fn expect_end(&self, declared: &str) -> Result<(), LoadError> {
         let Some(extra) = self.peek() else {
             return Ok(());
         };
         let message = format!("the file declares {declared} but has more records after them");
-        let count_line = self
-            .count_line
-            .map(|line| (line, self.fields_on(line).count()));
-        match count_line {
+        match self.count_line {
             // Said instead of the layout's note, which would count the line's fields after the
             // count.
-            Some((line, fields)) if fields > 1 => Err(LoadError::new(
+            Some((line, width)) if self.fields_on(line).count() == width => Err(LoadError::new(
                 self.file,
                 Some(extra.line),
                 format!(
-                    "{message} (line {line}, read as the count, holds {fields} fields: is the count line missing?)"
+                    "{message} (line {line}, read as the count, holds {width} fields, as a record does: is the count line missing?)"
                 ),
             )),
             _ => Err(self.error(extra.line, message)),
@@ -312,7 +317,7 @@ impl<'a> Tokens<'a> {
         limit: usize,
     ) -> Result<usize, LoadError> {
         let (count, line) = self.index(what)?;
-        self.count_line = Some(line);
+        self.count_line = Some((line, layout.fields.len()));
         self.begin_records(count.min(limit), layout);
         self.check_count(what, (count, line), layout.fields.len(), limit)
     }

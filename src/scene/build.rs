@@ -10,7 +10,7 @@ use crate::io::{
 use crate::sim::body::RigidBody;
 use crate::sim::constraint::DistanceConstraint;
 use crate::sim::settings::Settings;
-use crate::sim::shape::Shape;
+use crate::sim::shape::{Shape, ShapeError};
 use crate::sim::world::World;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -244,9 +244,12 @@ fn mesh_warning(shape: &Shape, mesh_path: &Path) -> Option<String> {
 
 /// Whether `mesh_path` names an `.off` surface (numbered from 0, its solid made of its faces).
 fn is_surface(mesh_path: &Path) -> bool {
-    mesh_path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("off"))
+    extension(mesh_path).as_deref() == Some("off")
+}
+
+/// A file's extension in lower case: mesh formats go by it, in any case.
+fn extension(path: &Path) -> Option<String> {
+    Some(path.extension()?.to_str()?.to_ascii_lowercase())
 }
 
 /// The first `named` vertices that none of `tetrahedra` uses, said in the file's numbering
@@ -264,7 +267,7 @@ fn unused_vertices(mesh_path: &Path, named: usize, tetrahedra: &[[u32; 4]]) -> O
         true => ("face", format!("{first} (0-based)")),
         false => ("tetrahedron", format!("{}", first + 1)),
     };
-    let unused = crate::io::counted(unused, "vertex is", "vertices are");
+    let unused = counted(unused, "vertex is", "vertices are");
     Some(format!(
         "{unused} used by no {user} (the first: vertex {number})"
     ))
@@ -275,8 +278,7 @@ pub type MeshReader = fn(&Path, &str) -> Result<TetMesh, LoadError>;
 
 /// The reader of a mesh file by its extension: `.mesh` (Medit) or `.off`, in any case.
 pub fn mesh_reader(path: &Path) -> Option<MeshReader> {
-    let extension = path.extension()?.to_str()?.to_ascii_lowercase();
-    match extension.as_str() {
+    match extension(path)?.as_str() {
         "mesh" => Some(parse_medit),
         "off" => Some(parse_off),
         _ => None,
@@ -300,14 +302,30 @@ fn read_shape(
     let text = source.read(mesh_path)?;
     let mesh = parse(mesh_path, &text)?;
     Shape::from_tet_mesh(&mesh).map_err(|e| {
-        let mut problem = e.to_string();
-        // A vertex far off the solid leaves a hull too thin to build: the stray is the cause.
-        let named = mesh.vertices.len() - mesh.added_vertices;
-        if let Some(unused) = unused_vertices(mesh_path, named, &mesh.tetrahedra) {
-            problem = format!("{problem}; {unused}");
-        }
+        let named = mesh.vertices.len().saturating_sub(mesh.added_vertices);
+        let unused = unused_vertices(mesh_path, named, &mesh.tetrahedra);
+        let problem = match (e, unused) {
+            // A vertex far off the solid leaves a hull too thin to build (parry's, which
+            // collisions use): not a flat mesh, as the error alone says.
+            (ShapeError::NoHull, Some(unused)) => format!(
+                "{unused}: the convex hull of every vertex, which collisions use, could not be built (a vertex far off the solid leaves it too thin)"
+            ),
+            (e, _) => e.to_string(),
+        };
         LoadError::new(mesh_path, None, problem)
     })
+}
+
+/// The mesh files a scene file on disk names, as its load finds them (none where the scene
+/// cannot be read or parsed): the files a viewer watches for changes.
+pub fn mesh_paths(scene: &Path) -> Vec<PathBuf> {
+    let Ok(text) = Disk.read(scene) else {
+        return Vec::new();
+    };
+    let folder = scene.parent().unwrap_or(Path::new(""));
+    let records = parse_scene(scene, &text).map(|r| r.records);
+    let path = |r: &SceneRecord| mesh_path_in(&Disk, folder, &r.mesh_path);
+    records.unwrap_or_default().iter().map(path).collect()
 }
 
 /// Where a scene's mesh path leads: from the scene's folder, its backslashes read as slashes

@@ -2,7 +2,7 @@
 //! by name or path with its constraints, or one mesh file dropped on the window, which becomes a
 //! one-body scene above the ground.
 
-use crate::io::{LoadError, parse_scene};
+use crate::io::LoadError;
 use crate::scene::default_constraints_path;
 use crate::{ConstraintsChoice, RigidBody, Settings, World};
 use glam::{DQuat, DVec3};
@@ -74,10 +74,7 @@ impl SceneSource {
             ConstraintsChoice::File(path) => files.push(path.clone()),
             ConstraintsChoice::None => {}
         }
-        let folder = scene.parent().unwrap_or(Path::new(""));
-        let text = std::fs::read_to_string(&scene).unwrap_or_default();
-        for record in parse_scene(&scene, &text).unwrap_or_default().records {
-            let mesh = folder.join(&record.mesh_path);
+        for mesh in crate::scene::mesh_paths(&scene) {
             if !files.contains(&mesh) {
                 files.push(mesh);
             }
