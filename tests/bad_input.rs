@@ -1147,10 +1147,17 @@ fn cli_names_the_setting_a_negative_value_breaks() {
             "--full-substeps-from",
             "--full-substeps-from must be a non-negative number of seconds, got -1",
         ),
+        (
+            "--max-iterations",
+            "expected a whole number, 0 or more, got '-1'",
+        ),
     ] {
         let args = ["run", "pile-20", "--steps", "1", flag, "-1"].map(os);
         cli_fails_saying(&args, words);
     }
+    // A mesh where a scene is expected is called a mesh (it read as a scene counting "OFF").
+    let mesh = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/box.mesh");
+    cli_fails_saying(&["run", mesh].map(os), "a mesh, not a scene");
     if !cfg!(feature = "viewer") {
         return;
     }
@@ -1176,6 +1183,12 @@ fn cli_names_the_setting_a_negative_value_breaks() {
     // A camera the view cannot take is refused before a window opens (no display needed).
     let args = ["view", "pile-20", "--camera", "foo"].map(os);
     cli_fails_saying(&args, "--camera 'foo': invalid float literal");
+    // A word that is neither a preset nor a flag names the presets.
+    let args = ["view", "pile-20", "--compare", "bogus"].map(os);
+    cli_fails_saying(
+        &args,
+        "expected a preset (accurate, coursework) or settings flags",
+    );
 }
 
 /// `bench scale` and `bench accuracy` refuse sizes no generated scene can have, no measured

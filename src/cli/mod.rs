@@ -32,7 +32,7 @@ pub struct SettingsArgs {
     /// The coursework's maxIterations: the constraint loop stops once visits x M reach K, M being
     /// the number of inequality constraints (two per constraint record), so a step makes at most
     /// ceil(K / M) constraint visits [default: 10000].
-    #[arg(long, value_name = "K")]
+    #[arg(long, value_name = "K", allow_negative_numbers = true, value_parser = whole_number::<usize>)]
     pub max_iterations: Option<usize>,
     /// Gravity, X,Y,Z in units/s^2 (the ground is y = 0) [default: 0,-9.8,0].
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = parse_vector)]

@@ -322,7 +322,7 @@ fn print_summary(out: &mut impl Write, s: &RunSummary) -> std::io::Result<()> {
     )?;
     writeln!(
         out,
-        "contacts {} body-body, {} ground; deepest penetration {}",
+        "contacts over the run: {} body-body, {} ground; deepest penetration {}",
         s.contacts,
         s.ground_contacts,
         super::decimals(s.max_penetration, 4)

@@ -31,11 +31,15 @@ pub fn parse_compare(spec: &str) -> Result<Settings, String> {
     }
     let mut flags = CompareFlags::try_parse_from(&words).map_err(|e| {
         let text = e.to_string();
-        text.lines()
-            .next()
-            .unwrap_or(&text)
-            .trim_start_matches("error: ")
-            .to_string()
+        let first = text.lines().next().unwrap_or(&text);
+        let first = first.trim_start_matches("error: ");
+        // A word that is neither a preset nor a flag ("--compare bogus").
+        match preset {
+            None if !spec.trim_start().starts_with('-') => {
+                format!("{first}: expected a preset (accurate, coursework) or settings flags")
+            }
+            _ => first.to_string(),
+        }
     })?;
     if let Some(accurate) = preset {
         flags.settings.accurate |= accurate;

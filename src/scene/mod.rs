@@ -122,6 +122,12 @@ pub fn load_file(
     constraints: &ConstraintsChoice,
     settings: Settings,
 ) -> Result<World, LoadError> {
+    // A mesh given where a scene is expected read as a scene whose body count was "OFF".
+    if mesh_reader(path).is_some() {
+        let problem = "a mesh, not a scene: a scene file lists bodies, each on a mesh (a mesh \
+                       file dropped on the viewer's window is shown alone)";
+        return Err(LoadError::new(path, None, problem));
+    }
     load_with(&Disk, path, constraints, settings)
 }
 
