@@ -56,6 +56,9 @@ enum BenchCommand {
     /// The tower, a stack of ten built at rest and the two chains for 100,000 steps (--steps):
     /// drift, violation, energy. A quick look: --steps 5000.
     Soak(cli::bench::SoakArgs),
+    /// Draws an earlier run's plots again from its accuracy.json and scale.json, beside them
+    /// (the plots' drawing may change without running the benches again).
+    Replot(cli::bench::ReplotArgs),
 }
 
 fn main() -> ExitCode {
@@ -78,6 +81,7 @@ fn main() -> ExitCode {
         Some(Command::Bench(BenchCommand::Scale(args))) => cli::bench::scale(&args),
         Some(Command::Bench(BenchCommand::Accuracy(args))) => cli::bench::accuracy(&args),
         Some(Command::Bench(BenchCommand::Soak(args))) => cli::bench::soak(&args),
+        Some(Command::Bench(BenchCommand::Replot(args))) => cli::bench::replot(&args),
         Some(Command::Scenes) => {
             println!("built in (compiled into the binary):");
             for (name, file) in tumble::BUILTIN_SCENES {

@@ -303,3 +303,51 @@ fn gravity_is_a_flag() {
         assert_eq!(field(b, 4), field(a, 4), "{a} -> {b}");
     }
 }
+
+/// `bench replot` draws the committed runs' plots again from their JSON: one per accuracy
+/// scenario and scale family, every tick written to three figures at most (they came as
+/// computed, `9.999999999999999e-5`), the legend in its own column right of the plot.
+#[test]
+fn bench_replot_draws_the_committed_runs_plots_with_readable_ticks() {
+    let dir = std::env::temp_dir().join(format!("tumble-replot-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let bench = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/bench");
+    for name in ["accuracy.json", "scale.json"] {
+        std::fs::copy(bench.join(name), dir.join(name)).unwrap();
+    }
+    let out = succeeded(tumble().args(["bench", "replot"]).arg(&dir));
+    let wrote = String::from_utf8_lossy(&out.stdout);
+    let svgs: Vec<&str> = wrote
+        .lines()
+        .filter_map(|l| l.strip_prefix("wrote "))
+        .collect();
+    assert_eq!(svgs.len(), 14 + 4, "{wrote}");
+    for svg in svgs {
+        let text = std::fs::read_to_string(svg).unwrap();
+        let mut legend = 0;
+        for label in text.split("<text").skip(1) {
+            let (attributes, rest) = label.split_once('>').unwrap();
+            let words = rest.split("</text>").next().unwrap().trim();
+            if words.parse::<f64>().is_ok() {
+                let digits = words.chars().filter(char::is_ascii_digit).count();
+                assert!(digits <= 6, "{svg}: tick '{words}'");
+            }
+            // The legend's entries are the texts anchored at their start.
+            if attributes.contains("text-anchor=\"start\"") {
+                let x = attributes
+                    .split("x=\"")
+                    .nth(1)
+                    .unwrap()
+                    .split('"')
+                    .next()
+                    .unwrap();
+                let x: f64 = x.parse().unwrap();
+                assert!(x >= 900.0, "{svg}: legend entry '{words}' inside the plot");
+                legend += 1;
+            }
+        }
+        assert!(legend >= 2, "{svg}: {legend} legend entries");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -331,6 +331,35 @@ pub fn run(config: &AccuracyConfig, progress: &dyn Progress) -> anyhow::Result<A
     })
 }
 
+/// The plots of an earlier run drawn again into `out` from its JSON report (`json`, the
+/// results' layout: scenario -> combination -> dt -> row): how the plots are drawn may change
+/// without running the bench again. A metric written as `null` (not finite) is left out.
+pub fn replot(json: &str, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let value: serde_json::Value = serde_json::from_str(json)?;
+    let object = |v: &serde_json::Value| v.as_object().cloned().unwrap_or_default();
+    let mut results = AccuracyResults::new();
+    for (scenario, by_combo) in object(&value) {
+        for (combo, by_dt) in object(&by_combo) {
+            for (dt, row) in object(&by_dt) {
+                let number = |v: Option<&serde_json::Value>| v.and_then(|v| v.as_f64());
+                let metrics = object(&row["metrics"]).into_iter();
+                let row = Row {
+                    wall_per_sim_second: number(row.get("wall_per_sim_second"))
+                        .ok_or_else(|| anyhow::anyhow!("{scenario}/{combo}/{dt}: no run time"))?,
+                    metrics: metrics
+                        .filter_map(|(k, v)| Some((k, v.as_f64()?)))
+                        .collect(),
+                    finite: row["finite"].as_bool().unwrap_or(false),
+                };
+                let combos = results.entry(scenario.clone()).or_default();
+                combos.entry(combo.clone()).or_default().insert(dt, row);
+            }
+        }
+    }
+    anyhow::ensure!(!results.is_empty(), "no accuracy results in the JSON");
+    write_plots(&results, out)
+}
+
 /// One log-log plot of error against run time per scenario, with the Pareto front.
 fn write_plots(results: &AccuracyResults, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
     let mut plots = Vec::new();
@@ -360,7 +389,7 @@ fn write_plots(results: &AccuracyResults, out: &Path) -> anyhow::Result<Vec<Path
         log_log_plot(
             &path,
             &format!("{scenario_name}: {metric} against run time"),
-            "wall seconds per simulated second",
+            "wall seconds per simulated second (a point per dt, the smaller further right)",
             metric,
             &series,
         )?;

@@ -6,8 +6,19 @@ use std::path::Path;
 pub struct Series {
     pub name: String,
     pub points: Vec<(f64, f64)>,
-    /// Mark these points as the Pareto front (drawn thicker, black outline).
+    /// Mark these points as the Pareto front (a wide grey band under the series' lines).
     pub pareto: bool,
+}
+
+/// The line of series `k`: its colour, or for the Pareto front a wide translucent grey band
+/// (drawn in a colour of its own it took the blue of the first series, which it mostly
+/// follows, and hid it).
+fn line_style(k: usize, series: &Series) -> ShapeStyle {
+    if series.pareto {
+        BLACK.mix(0.2).stroke_width(9)
+    } else {
+        COLORS[k % COLORS.len()].stroke_width(2)
+    }
 }
 
 const COLORS: [RGBColor; 12] = [
@@ -24,6 +35,36 @@ const COLORS: [RGBColor; 12] = [
     RGBColor(0, 0, 0),
     RGBColor(255, 187, 120),
 ];
+
+/// A log axis's tick as a reader writes it, to three figures: `1e-4`, `0.003`, `1000` (the
+/// ticks came as they were computed: `9.999999999999999e-5`, `0.00030000000000000003`).
+fn tick_label(v: f64) -> String {
+    let rounded: f64 = format!("{v:.2e}").parse().unwrap_or(v);
+    if rounded == 0.0 || (1e-3..1e6).contains(&rounded.abs()) {
+        format!("{rounded}")
+    } else {
+        format!("{rounded:e}")
+    }
+}
+
+/// Width of the picture's legend column, right of the plot: a legend inside the plot hid the
+/// points under it.
+const LEGEND_WIDTH: u32 = 220;
+
+/// A line of each series' colour and its name, one below the other, in `area`.
+fn draw_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    series: &[Series],
+) -> anyhow::Result<()> {
+    for (k, s) in series.iter().enumerate() {
+        let y = 60 + 22 * k as i32;
+        let line = PathElement::new(vec![(8, y), (34, y)], line_style(k, s));
+        area.draw(&line).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let name = Text::new(s.name.clone(), (42, y - 7), ("sans-serif", 14));
+        area.draw(&name).map_err(|e| anyhow::anyhow!("{e}"))?;
+    }
+    Ok(())
+}
 
 /// Writes an SVG plot with logarithmic axes; non-positive values are dropped.
 pub fn log_log_plot(
@@ -46,9 +87,10 @@ pub fn log_log_plot(
         (x0, x1, y0, y1) = (1.0, 10.0, 1.0, 10.0);
     }
     let (x0, x1, y0, y1) = (x0 / 1.5, x1 * 1.5, y0 / 1.5, y1 * 1.5);
-    let root = SVGBackend::new(path, (900, 600)).into_drawing_area();
+    let root = SVGBackend::new(path, (900 + LEGEND_WIDTH, 600)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let mut chart = ChartBuilder::on(&root)
+    let (plot, legend) = root.split_horizontally(900);
+    let mut chart = ChartBuilder::on(&plot)
         .caption(title, ("sans-serif", 22))
         .margin(15)
         .x_label_area_size(45)
@@ -59,6 +101,10 @@ pub fn log_log_plot(
         .configure_mesh()
         .x_desc(x_label)
         .y_desc(y_label)
+        .x_labels(8)
+        .y_labels(8)
+        .x_label_formatter(&|v| tick_label(*v))
+        .y_label_formatter(&|v| tick_label(*v))
         .draw()
         .map_err(|e| anyhow::anyhow!("{e}"))?;
     for (k, s) in series.iter().enumerate() {
@@ -69,25 +115,37 @@ pub fn log_log_plot(
             .copied()
             .filter(|(x, y)| *x > 0.0 && *y > 0.0 && x.is_finite() && y.is_finite())
             .collect();
-        let width = if s.pareto { 3 } else { 2 };
         chart
-            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(width)))
-            .map_err(|e| anyhow::anyhow!("{e}"))?
-            .label(s.name.clone())
-            .legend(move |(x, y)| {
-                PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
-            });
-        chart
-            .draw_series(pts.iter().map(|&p| Circle::new(p, 4, color.filled())))
+            .draw_series(LineSeries::new(pts.clone(), line_style(k, s)))
             .map_err(|e| anyhow::anyhow!("{e}"))?;
+        // The front's points are other series' points: marked by them.
+        if !s.pareto {
+            chart
+                .draw_series(pts.iter().map(|&p| Circle::new(p, 4, color.filled())))
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
+        }
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .position(SeriesLabelPosition::UpperLeft)
-        .draw()
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    draw_legend(&legend, series)?;
     root.present().map_err(|e| anyhow::anyhow!("{e}"))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::tick_label;
+
+    #[test]
+    fn ticks_read_as_written() {
+        let cases = [
+            (9.999999999999999e-5, "1e-4"),
+            (0.00030000000000000003, "3e-4"),
+            (0.009999999999999998, "0.01"),
+            (0.9999999999999999, "1"),
+            (1000.0, "1000"),
+            (2.5e6, "2.5e6"),
+        ];
+        for (v, label) in cases {
+            assert_eq!(tick_label(v), label);
+        }
+    }
 }

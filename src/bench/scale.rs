@@ -478,7 +478,11 @@ pub fn run(config: &ScaleConfig, progress: &dyn Progress) -> anyhow::Result<Scal
     super::output_folder(&config.out)?;
     let csv = config.out.join("scale.csv");
     super::write_named(&csv, csv_text(&results))?;
-    let plots = write_plots(&results, &config.scenes, &config.out)?;
+    let medians = results.iter().map(|(key, by)| {
+        let by_variant = by.iter().map(|(v, m)| (v.clone(), m.median_ms_per_step));
+        (key.clone(), by_variant.collect())
+    });
+    let plots = write_plots(&medians.collect(), &config.scenes, &config.out)?;
     Ok(ScaleReport {
         machine: super::machine::Machine::detect(),
         cores: rayon::current_num_threads(),
@@ -660,8 +664,38 @@ fn csv_text(results: &BTreeMap<String, BTreeMap<String, Measurement>>) -> String
     csv
 }
 
+/// The plots of an earlier run drawn again into `out` from its JSON report (`json`: `results
+/// -> scene -> variant -> {median_ms_per_step, ...}`), for the families it holds: how the plots
+/// are drawn may change without running the bench again.
+pub fn replot(json: &str, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    let value: serde_json::Value = serde_json::from_str(json)?;
+    let object = |v: &serde_json::Value| v.as_object().cloned().unwrap_or_default();
+    let mut medians: BTreeMap<String, BTreeMap<String, f64>> = BTreeMap::new();
+    for (scene, by_variant) in object(&value["results"]) {
+        for (variant, m) in object(&by_variant) {
+            if let Some(median) = m["median_ms_per_step"].as_f64() {
+                medians
+                    .entry(scene.clone())
+                    .or_default()
+                    .insert(variant, median);
+            }
+        }
+    }
+    let family_of = |key: &String| key.rsplit_once('-').map(|(family, _)| family.to_string());
+    let held: Vec<String> = medians.keys().filter_map(family_of).collect();
+    let scenes: Vec<String> = SCENE_FAMILIES
+        .iter()
+        .map(|f| f.to_string())
+        .filter(|f| held.contains(f))
+        .collect();
+    anyhow::ensure!(!scenes.is_empty(), "no scale results in the JSON");
+    write_plots(&medians, &scenes, out)
+}
+
+/// One log-log plot of ms per step against N per scene family, a line per variant, from each
+/// run's median (`medians`: scene-N -> variant -> ms).
 fn write_plots(
-    results: &BTreeMap<String, BTreeMap<String, Measurement>>,
+    medians: &BTreeMap<String, BTreeMap<String, f64>>,
     scenes: &[String],
     out: &Path,
 ) -> anyhow::Result<Vec<PathBuf>> {
@@ -670,12 +704,12 @@ fn write_plots(
         let series = Variant::ALL
             .iter()
             .map(|v| {
-                let mut points: Vec<(f64, f64)> = results
+                let mut points: Vec<(f64, f64)> = medians
                     .iter()
                     .filter_map(|(key, by)| {
                         let (s, n) = key.rsplit_once('-')?;
-                        let m = by.get(v.name()).filter(|_| s == scene)?;
-                        Some((n.parse::<f64>().ok()?, m.median_ms_per_step))
+                        let ms = by.get(v.name()).filter(|_| s == scene)?;
+                        Some((n.parse::<f64>().ok()?, *ms))
                     })
                     .collect();
                 points.sort_by(|a, b| a.0.total_cmp(&b.0));

@@ -355,6 +355,45 @@ fn print_accuracy(report: &AccuracyReport) {
     );
 }
 
+#[derive(Debug, Args)]
+pub struct ReplotArgs {
+    /// Folder of an earlier run's accuracy.json and scale.json (either); the plots are written
+    /// beside them.
+    #[arg(default_value = "bench-out")]
+    pub folder: PathBuf,
+}
+
+/// A report's reader of its plots: its JSON text and the folder to draw into.
+type Replot = fn(&str, &Path) -> anyhow::Result<Vec<PathBuf>>;
+
+pub fn replot(args: &ReplotArgs) -> anyhow::Result<()> {
+    use anyhow::Context;
+    let reports: [(&str, Replot); 2] = [
+        ("accuracy.json", tumble::bench::accuracy::replot),
+        ("scale.json", tumble::bench::scale::replot),
+    ];
+    let mut plots = Vec::new();
+    for (name, replot) in reports {
+        let json = args.folder.join(name);
+        if !json.is_file() {
+            continue;
+        }
+        let text = std::fs::read_to_string(&json)
+            .with_context(|| format!("cannot read {}", json.display()))?;
+        let drawn = replot(&text, &args.folder).with_context(|| json.display().to_string())?;
+        plots.extend(drawn);
+    }
+    anyhow::ensure!(
+        !plots.is_empty(),
+        "{}: no accuracy.json or scale.json to plot",
+        args.folder.display()
+    );
+    for plot in &plots {
+        println!("wrote {}", plot.display());
+    }
+    Ok(())
+}
+
 pub fn soak(args: &SoakArgs) -> anyhow::Result<()> {
     let settings = if args.accurate {
         Settings::accurate()
