@@ -335,16 +335,25 @@ pub fn run(config: &AccuracyConfig, progress: &dyn Progress) -> anyhow::Result<A
 /// results' layout: scenario -> combination -> dt -> row): how the plots are drawn may change
 /// without running the bench again. A metric written as `null` (not finite) is left out.
 pub fn replot(json: &str, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    use super::json_object as object;
     let value: serde_json::Value = serde_json::from_str(json)?;
-    let object = |v: &serde_json::Value| v.as_object().cloned().unwrap_or_default();
     let mut results = AccuracyResults::new();
     for (scenario, by_combo) in object(&value) {
+        // A scenario names a plot's file: one of the bench's, not a path.
+        let known = Scenario::ALL.iter().any(|s| scenario.starts_with(s.name()));
+        let plain = scenario
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "._".contains(c));
+        anyhow::ensure!(
+            known && plain,
+            "'{scenario}' is not a scenario of the bench"
+        );
         for (combo, by_dt) in object(&by_combo) {
             for (dt, row) in object(&by_dt) {
-                let number = |v: Option<&serde_json::Value>| v.and_then(|v| v.as_f64());
                 let metrics = object(&row["metrics"]).into_iter();
                 let row = Row {
-                    wall_per_sim_second: number(row.get("wall_per_sim_second"))
+                    wall_per_sim_second: row["wall_per_sim_second"]
+                        .as_f64()
                         .ok_or_else(|| anyhow::anyhow!("{scenario}/{combo}/{dt}: no run time"))?,
                     metrics: metrics
                         .filter_map(|(k, v)| Some((k, v.as_f64()?)))

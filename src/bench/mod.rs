@@ -47,6 +47,12 @@ pub fn output_folder(folder: &std::path::Path) -> anyhow::Result<()> {
     std::fs::remove_file(&probe).with_context(|| format!("--out {shown}: cannot write there"))
 }
 
+/// A JSON object's entries, none where `value` is not an object: the replots' reader takes
+/// what it can of a report.
+pub(crate) fn json_object(value: &serde_json::Value) -> serde_json::Map<String, serde_json::Value> {
+    value.as_object().cloned().unwrap_or_default()
+}
+
 /// `contents` into `path`, an error naming the file.
 #[cfg(feature = "bench")]
 pub fn write_named(path: &std::path::Path, contents: impl AsRef<[u8]>) -> anyhow::Result<()> {

@@ -101,13 +101,14 @@ pub fn log_log_plot(
         .configure_mesh()
         .x_desc(x_label)
         .y_desc(y_label)
-        .x_labels(8)
-        .y_labels(8)
         .x_label_formatter(&|v| tick_label(*v))
         .y_label_formatter(&|v| tick_label(*v))
         .draw()
         .map_err(|e| anyhow::anyhow!("{e}"))?;
-    for (k, s) in series.iter().enumerate() {
+    // The Pareto front first, so that its band lies under the lines it follows.
+    let mut order: Vec<(usize, &Series)> = series.iter().enumerate().collect();
+    order.sort_by_key(|(_, s)| !s.pareto);
+    for (k, s) in order {
         let color = COLORS[k % COLORS.len()];
         let pts: Vec<(f64, f64)> = s
             .points

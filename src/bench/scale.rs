@@ -668,8 +668,8 @@ fn csv_text(results: &BTreeMap<String, BTreeMap<String, Measurement>>) -> String
 /// -> scene -> variant -> {median_ms_per_step, ...}`), for the families it holds: how the plots
 /// are drawn may change without running the bench again.
 pub fn replot(json: &str, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
+    use super::json_object as object;
     let value: serde_json::Value = serde_json::from_str(json)?;
-    let object = |v: &serde_json::Value| v.as_object().cloned().unwrap_or_default();
     let mut medians: BTreeMap<String, BTreeMap<String, f64>> = BTreeMap::new();
     for (scene, by_variant) in object(&value["results"]) {
         for (variant, m) in object(&by_variant) {

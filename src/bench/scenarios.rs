@@ -16,19 +16,27 @@ use std::time::Instant;
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 #[serde(rename_all = "snake_case")]
 pub enum Scenario {
+    /// A box thrown upwards: position error against the closed form.
     #[cfg_attr(feature = "cli", value(alias = "free_fall"))]
     FreeFall,
+    /// Torque-free spin of an ellipsoid near its intermediate axis: when it flips.
     #[cfg_attr(feature = "cli", value(alias = "spin_ellipsoid"))]
     SpinEllipsoid,
+    /// The same for a long octahedron.
     #[cfg_attr(feature = "cli", value(alias = "spin_long_octahedron"))]
     SpinLongOctahedron,
+    /// An octahedron bouncing at e = 1, 0.8 and 0.5: apex heights against e^2 a bounce.
     Bounce,
+    /// A box on a rigid rod at its centre of mass: period and amplitude against the closed form.
     Pendulum,
-    /// A box hung by a corner on a rigid rod: it turns as it swings. Its energy should stay.
+    /// A box hung by a corner on a rigid rod: it turns as it swings, its energy kept.
     #[cfg_attr(feature = "cli", value(alias = "corner_pendulum"))]
     CornerPendulum,
+    /// Boxes of very different densities stacked at rest: how far they drift.
     Tower,
+    /// The built-in two-chain scene: its constraints' worst violation.
     Chains,
+    /// The built-in mixed scene at e = 1, without friction: its energy kept.
     #[cfg_attr(feature = "cli", value(alias = "mixed_energy"))]
     MixedEnergy,
     /// A box on a 20 degree incline with mu = 0.5: static friction holds it.

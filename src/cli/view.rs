@@ -339,6 +339,11 @@ mod tests {
         assert_eq!((s.solver, s.substeps), (Solver::SoftStep, 8));
         assert!(parse_compare("--dt").is_err());
         assert!(parse_compare("--bogus 1").is_err());
+        let unknown = parse_compare("bogus").unwrap_err();
+        assert!(
+            unknown.contains("expected a preset (accurate, coursework)"),
+            "{unknown}"
+        );
         assert!(parse_compare("").is_err());
     }
 

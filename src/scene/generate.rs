@@ -279,7 +279,7 @@ pub const FAMILIES: [(&str, &str); 6] = [
     ),
     (
         "stack-N",
-        "N boxes built resting on each other (the coursework's one-point contacts topple it; --accurate holds it)",
+        "N boxes built resting on each other (only --accurate holds it)",
     ),
 ];
 
