@@ -49,6 +49,7 @@ pub fn output_folder(folder: &std::path::Path) -> anyhow::Result<()> {
 
 /// A JSON object's entries, none where `value` is not an object: the replots' reader takes
 /// what it can of a report.
+#[cfg(feature = "bench")]
 pub(crate) fn json_object(value: &serde_json::Value) -> serde_json::Map<String, serde_json::Value> {
     value.as_object().cloned().unwrap_or_default()
 }
