@@ -40,6 +40,8 @@ fn json_summary_has_the_documented_fields() {
         assert!(v.get(key).is_some(), "missing {key}");
     }
     assert_eq!(v["steps"], 50);
+    // Nothing frozen: 0, not the -0.0 an empty sum of floats gives.
+    assert!(v["energy_frozen"].as_f64().unwrap().is_sign_positive());
     assert!(
         (v["sim_time"].as_f64().unwrap() - 1.0).abs() < 1e-9,
         "50 steps of 0.02 s"
@@ -277,7 +279,9 @@ fn gravity_is_a_flag() {
         "--gravity",
         "3,0,0",
     ];
-    succeeded(tumble().args(sideways).arg("--trajectory").arg(&path));
+    let wrote = succeeded(tumble().args(sideways).arg("--trajectory").arg(&path));
+    let named = format!("trajectory: steps 0 to 10 written to {}", path.display());
+    assert!(String::from_utf8_lossy(&wrote.stderr).contains(&named));
     let rows = std::fs::read_to_string(&path).unwrap();
     // `--trajectory -`: the same rows on standard output, the summary on standard error, and
     // no file named `-`.

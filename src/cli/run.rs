@@ -91,6 +91,14 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     if let Some(out) = trajectory {
         out.finish()?;
     }
+    // A file written is named (on standard error, where the summary's text would not be read
+    // as CSV): it was written without a word.
+    if let Some(path) = args.trajectory.as_deref().filter(|_| !to_stdout) {
+        eprintln!(
+            "trajectory: steps 0 to {completed} written to {}",
+            path.display()
+        );
+    }
     if interrupted {
         eprintln!(
             "interrupted after {completed} of {} steps{}",

@@ -278,11 +278,9 @@ impl World {
     /// Potential energy of the bodies frozen by the pose check, at their last finite pose.
     pub fn frozen_energy(&self) -> f64 {
         let g = self.settings.gravity;
-        self.bodies
-            .iter()
-            .filter(|b| b.quarantined)
-            .map(|b| b.energy(g))
-            .sum()
+        let frozen = self.bodies.iter().filter(|b| b.quarantined);
+        // An empty sum of floats is -0.0, which summaries printed as "-0.0" with nothing frozen.
+        frozen.map(|b| b.energy(g)).sum::<f64>() + 0.0
     }
 
     /// Largest distance by which any constraint lies outside its bound.
