@@ -39,9 +39,9 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
         let keyword = written.to_ascii_lowercase();
         tokens.next("a section keyword")?;
         let count_line = tokens.line();
-        match keyword.as_str() {
+        // Each section of records gives its count; the two header keywords none.
+        let count = match keyword.as_str() {
             "meshversionformatted" | "dimension" => {
-                last = None;
                 let (value, line) = tokens.index("a number after the keyword")?;
                 if keyword == "dimension" && value != 3 {
                     return Err(tokens.error(
@@ -49,6 +49,7 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
                         format!("only 3-dimensional meshes are supported, found Dimension {value}"),
                     ));
                 }
+                None
             }
             // A second list would be numbered after the first, which no writer means.
             "vertices" if seen_vertices => {
@@ -57,7 +58,7 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
             "vertices" => {
                 read_vertices(&mut tokens, &mut mesh.vertices)?;
                 seen_vertices = true;
-                last = Some((written, count_line, mesh.vertices.len()));
+                Some(mesh.vertices.len())
             }
             "triangles" => {
                 let first = mesh.triangles.len();
@@ -71,7 +72,7 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
                 mesh.triangles[first..]
                     .iter_mut()
                     .for_each(|t| t.swap(1, 2));
-                last = Some((written, count_line, mesh.triangles.len() - first));
+                Some(mesh.triangles.len() - first)
             }
             "tetrahedra" => {
                 let first = mesh.tetrahedra.len();
@@ -81,19 +82,16 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
                     &mut mesh.tetrahedra,
                     &mut tet_lines,
                 )?;
-                last = Some((written, count_line, mesh.tetrahedra.len() - first));
+                Some(mesh.tetrahedra.len() - first)
             }
-            "edges" => {
-                let count = skip_records(&mut tokens, "the edge count", 3)?;
-                last = Some((written, count_line, count));
-            }
+            "edges" => Some(skip_records(&mut tokens, "the edge count", 3)?),
             "corners" | "ridges" | "requiredvertices" | "requirededges" | "requiredtriangles" => {
-                let count = skip_records(&mut tokens, "the record count", 1)?;
-                last = Some((written, count_line, count));
+                Some(skip_records(&mut tokens, "the record count", 1)?)
             }
             "end" => break,
             _ => return Err(unknown_section(&tokens, (written, line), last)),
-        }
+        };
+        last = count.map(|count| (written, count_line, count));
     }
 
     if !seen_vertices || mesh.vertices.is_empty() {
