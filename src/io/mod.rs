@@ -31,6 +31,31 @@ pub fn counted(n: impl Into<u64>, one: &str, many: &str) -> String {
     format!("{n} {}", if n == 1 { one } else { many })
 }
 
+/// `v` as a reader writes an axis tick, to `figures` significant figures: plainly from 1e-3 to
+/// under 1e6 (`0.003`, `1000`), in scientific notation outside (`1e-4`, `1.15e10`). Ticks came
+/// as computed (`9.999999999999999e-5`) or in full (`11500000000`).
+pub fn tick_label(v: f64, figures: usize) -> String {
+    let places = figures.clamp(1, 17) - 1;
+    let rounded: f64 = format!("{v:.places$e}").parse().unwrap_or(v);
+    if rounded == 0.0 || (1e-3..1e6).contains(&rounded.abs()) {
+        format!("{rounded}")
+    } else {
+        format!("{rounded:e}")
+    }
+}
+
+/// The figures that tell ticks `spacing` apart near `v`: down to the spacing's decade, and two
+/// more for a spacing such as 0.25 (trailing zeros are not written: 1.15e10 and 1.2e10 apart
+/// by 5e7, 1125.969 and 1125.970 by 1e-3).
+pub fn tick_figures(v: f64, spacing: f64) -> usize {
+    let decades = v.abs().log10().floor() - spacing.abs().log10().floor();
+    if decades.is_finite() && decades >= 0.0 {
+        (decades as usize + 3).min(15)
+    } else {
+        3
+    }
+}
+
 /// The first element that repeats an earlier one, by `keys` (one per element, in order): the
 /// places `(earlier, later)` of that pair, or None. A mesh that lists an element twice counts
 /// its volume twice.
@@ -113,7 +138,37 @@ impl std::error::Error for LoadError {}
 
 #[cfg(test)]
 mod tests {
-    use super::counted;
+    use super::{counted, tick_figures, tick_label};
+
+    #[test]
+    fn ticks_read_as_written() {
+        let cases = [
+            (9.999999999999999e-5, "1e-4"),
+            (0.00030000000000000003, "3e-4"),
+            (0.009999999999999998, "0.01"),
+            (0.9999999999999999, "1"),
+            (1000.0, "1000"),
+            (2.5e6, "2.5e6"),
+        ];
+        for (v, label) in cases {
+            assert_eq!(tick_label(v, 3), label);
+        }
+    }
+
+    /// An axis's ticks keep the figures that tell them apart, and no more.
+    #[test]
+    fn ticks_keep_the_figures_their_spacing_needs() {
+        let label = |v: f64, spacing: f64| tick_label(v, tick_figures(v, spacing));
+        assert_eq!(label(1.15e10, 5e7), "1.15e10");
+        assert_eq!(label(1.2e10, 5e7), "1.2e10");
+        assert_eq!(label(1125.97 + 1e-12, 1e-3), "1125.97");
+        assert_eq!(label(1125.969, 1e-3), "1125.969");
+        assert_eq!(label(-250.0, 50.0), "-250");
+        assert_eq!(label(0.0, 0.1), "0");
+        assert_eq!(label(3e-7, 1e-7), "3e-7");
+        assert_eq!(label(2.75, 0.25), "2.75");
+        assert_eq!(label(0.30000000000000004, 0.1), "0.3");
+    }
 
     #[test]
     fn counts_take_the_singular_only_for_one() {

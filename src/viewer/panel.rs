@@ -790,7 +790,12 @@ fn plots_ui(ui: &mut egui::Ui, session: &Session) {
             .allow_zoom(false)
             .allow_drag(false)
             .allow_scroll(false)
-            .y_axis_label(label.to_string());
+            .y_axis_label(label.to_string())
+            // Figures enough to tell the ticks apart (the energy axis read 11500000000).
+            .y_axis_formatter(|mark, _| {
+                let figures = crate::io::tick_figures(mark.value, mark.step_size);
+                crate::io::tick_label(mark.value, figures)
+            });
         if legend {
             plot.legend(egui_plot::Legend::default())
         } else {
