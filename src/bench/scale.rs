@@ -196,6 +196,11 @@ impl Measurement {
         }
     }
 
+    /// Whether the run timed tumble's stages (Rapier's runs time only their whole step).
+    pub fn stages_timed(&self) -> bool {
+        self.mean_stage_ms.keys().any(|stage| stage != "total")
+    }
+
     /// The steps of the typical window.
     fn typical(&self) -> &[f64] {
         &self.step_seconds[..self.typical_steps.min(self.step_seconds.len())]
@@ -643,17 +648,26 @@ fn csv_text(results: &BTreeMap<String, BTreeMap<String, Measurement>>) -> String
     for (key, by_variant) in results {
         let (scene, n) = key.rsplit_once('-').unwrap_or((key, ""));
         for (v, m) in by_variant {
+            // Empty cells where the run timed no stage and counted nothing (Rapier's).
+            let timed = m.stages_timed();
             let stages: Vec<String> = stage_names
                 .iter()
-                .map(|s| format!("{:.5}", m.mean_stage_ms.get(*s).copied().unwrap_or(0.0)))
+                .map(|s| match timed {
+                    true => format!("{:.5}", m.mean_stage_ms.get(*s).copied().unwrap_or(0.0)),
+                    false => String::new(),
+                })
                 .collect();
+            let counted = |count: f64| match timed {
+                true => format!("{count:.1}"),
+                false => String::new(),
+            };
             csv.push_str(&format!(
-                "{scene},{n},{v},{:.5},{:.5},{},{:.1},{:.1},{:.2},{},{},{}\n",
+                "{scene},{n},{v},{:.5},{:.5},{},{},{},{:.2},{},{},{}\n",
                 m.median_ms_per_step,
                 m.late_median_ms_per_step,
                 stages.join(","),
-                m.constraint_visits_per_step,
-                m.contacts_per_step,
+                counted(m.constraint_visits_per_step),
+                counted(m.contacts_per_step),
                 m.peak_mib,
                 m.steps_measured,
                 m.asleep_at_end,
@@ -749,6 +763,34 @@ mod tests {
     fn run_of(step_seconds: Vec<f64>) -> Measurement {
         let n = step_seconds.len();
         Measurement::from_times(step_seconds, n)
+    }
+
+    /// A run that timed tumble's stages writes them; Rapier's, which times only its whole
+    /// step, leaves their cells and its counts empty (they read 0.00000, as if free).
+    #[test]
+    fn untimed_stages_are_empty_cells_not_zeros() {
+        let mut ours = run_of(vec![0.002; 4]);
+        ours.mean_stage_ms.insert("broad_phase".into(), 0.5);
+        ours.mean_stage_ms.insert("total".into(), 2.0);
+        let mut theirs = run_of(vec![0.003; 4]);
+        theirs.mean_stage_ms.insert("total".into(), 3.0);
+        assert!(ours.stages_timed() && !theirs.stages_timed());
+        let by_variant =
+            BTreeMap::from([("tumble_1_thread".into(), ours), ("rapier".into(), theirs)]);
+        let text = csv_text(&BTreeMap::from([("pile-100".to_string(), by_variant)]));
+        let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+        let row = |variant: &str| -> Vec<String> {
+            let line = text.lines().find(|l| l.contains(variant)).unwrap();
+            line.split(',').map(str::to_string).collect()
+        };
+        let (ours, theirs) = (row("tumble_1_thread"), row("rapier"));
+        assert_eq!(ours.len(), header.len());
+        assert_eq!(theirs.len(), header.len());
+        let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
+        assert_eq!(ours[column("broad_phase_ms")], "0.50000");
+        assert_eq!(theirs[column("broad_phase_ms")], "");
+        assert_eq!(theirs[column("visits_per_step")], "");
+        assert_eq!(theirs[column("median_ms_per_step")], "3.00000");
     }
 
     /// A pile watched on past its typical window: its median and the ratios cover the first

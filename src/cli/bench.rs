@@ -206,6 +206,49 @@ fn print_or_table<T: Serialize>(
     Ok(())
 }
 
+/// One scene's variant as a row of the scale table.
+fn scale_row(key: &str, v: &str, m: &tumble::bench::scale::Measurement) -> String {
+    let s = |k: &str| m.mean_stage_ms.get(k).copied().unwrap_or(0.0);
+    let solve = [
+        "contact_resolution",
+        "ground",
+        "solve_prepare",
+        "solve",
+        "solve_finish",
+    ]
+    .map(s)
+    .iter()
+    .sum::<f64>();
+    let figures = [
+        s("broad_phase"),
+        s("narrow_phase"),
+        solve,
+        s("constraints"),
+        s("integrate"),
+    ];
+    // Rapier's runs time no stage of tumble's and count no visits: a dash, not 0.000.
+    let timed = m.stages_timed();
+    let stages: Vec<String> = figures
+        .iter()
+        .map(|ms| match timed {
+            true => format!("{ms:>8.3}"),
+            false => format!("{:>8}", "-"),
+        })
+        .collect();
+    let visits = match timed {
+        true => format!("{:>7.0}", m.constraint_visits_per_step),
+        false => format!("{:>7}", "-"),
+    };
+    format!(
+        "{key:<14} {v:<18} {:>9.3} {:>9.3} {} {visits} {:>8.1} {:>7}",
+        m.median_ms_per_step,
+        m.late_median_ms_per_step,
+        stages.join(" "),
+        m.peak_mib,
+        m.asleep_at_end
+    )
+}
+
 fn print_scale(report: &ScaleReport) {
     println!(
         "{:<14} {:<18} {:>9} {:>9} {:>8} {:>8} {:>8} {:>8} {:>8} {:>7} {:>8} {:>7}",
@@ -223,30 +266,8 @@ fn print_scale(report: &ScaleReport) {
         "asleep"
     );
     for (key, by_variant) in &report.results {
-        for (v, m) in by_variant {
-            let s = |k: &str| m.mean_stage_ms.get(k).copied().unwrap_or(0.0);
-            println!(
-                "{key:<14} {v:<18} {:>9.3} {:>9.3} {:>8.3} {:>8.3} {:>8.3} {:>8.3} {:>8.3} {:>7.0} {:>8.1} {:>7}",
-                m.median_ms_per_step,
-                m.late_median_ms_per_step,
-                s("broad_phase"),
-                s("narrow_phase"),
-                [
-                    "contact_resolution",
-                    "ground",
-                    "solve_prepare",
-                    "solve",
-                    "solve_finish"
-                ]
-                .map(s)
-                .iter()
-                .sum::<f64>(),
-                s("constraints"),
-                s("integrate"),
-                m.constraint_visits_per_step,
-                m.peak_mib,
-                m.asleep_at_end
-            );
+        for (variant, m) in by_variant {
+            println!("{}", scale_row(key, variant, m));
         }
         if let Some(sp) = report.speedups.get(key) {
             let parts: Vec<String> = sp.iter().map(|(k, v)| format!("{k} = {v:.2}x")).collect();
@@ -372,25 +393,33 @@ pub fn replot(args: &ReplotArgs) -> anyhow::Result<()> {
         ("accuracy.json", tumble::bench::accuracy::replot),
         ("scale.json", tumble::bench::scale::replot),
     ];
-    let mut plots = Vec::new();
+    // Each report drawn on its own: a malformed accuracy.json left scale.json undrawn.
+    let (mut plots, mut failures, mut found) = (Vec::new(), Vec::new(), 0);
     for (name, replot) in reports {
         let json = args.folder.join(name);
         if !json.is_file() {
             continue;
         }
-        let text = std::fs::read_to_string(&json)
-            .with_context(|| format!("cannot read {}", json.display()))?;
-        let drawn = replot(&text, &args.folder).with_context(|| json.display().to_string())?;
-        plots.extend(drawn);
+        found += 1;
+        let drawn = std::fs::read_to_string(&json)
+            .with_context(|| format!("cannot read {}", json.display()))
+            .and_then(|text| {
+                replot(&text, &args.folder).with_context(|| json.display().to_string())
+            });
+        match drawn {
+            Ok(drawn) => plots.extend(drawn),
+            Err(e) => failures.push(format!("{e:#}")),
+        }
     }
     anyhow::ensure!(
-        !plots.is_empty(),
+        found > 0,
         "{}: no accuracy.json or scale.json to plot",
         args.folder.display()
     );
     for plot in &plots {
         println!("wrote {}", plot.display());
     }
+    anyhow::ensure!(failures.is_empty(), "{}", failures.join("\n"));
     Ok(())
 }
 
