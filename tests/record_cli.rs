@@ -143,6 +143,16 @@ fn fast_gifs_are_warned_of() {
         stderr.contains("warning: --fps 100: most players show GIF frames"),
         "{stderr}"
     );
+    // 100 frames a second of 50 steps: every other frame shows the step the one before did.
+    assert!(
+        stderr.contains("50 % of the frames repeat the one before; a --dt of at most 0.0100"),
+        "{stderr}"
+    );
+    // The length is the video's (frames / fps), the time the last frame's.
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let summary = "wrote 2 frames (32x32, 0.02 s at 100 fps, the last frame at simulated time \
+                   0.00 s after 0 steps)";
+    assert!(stdout.contains(summary), "{stdout}");
 }
 
 /// Decoded RGBA frames of a GIF, with its size.
@@ -465,6 +475,20 @@ fn record_errors_are_clear() {
         let record = ["record", "cube", "--seconds", seconds, "--dt", dt, "-o"];
         fails_saying(tumble().args(record).arg(dir.join("d.gif")), words);
     }
+    // Refused without the warning that nothing would move first.
+    let still = ["record", "cube", "--dt", "0", "-o"];
+    let output = tumble()
+        .args(still)
+        .arg(dir.join("d.gif"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("the time step must be positive to record, got 0")
+            && !stderr.contains("warning"),
+        "{stderr}"
+    );
 }
 
 /// `view --screenshot` is checked as the other outputs are, before any window opens: not over
@@ -526,6 +550,22 @@ fn view_without_display_points_to_record_and_run() {
     // `--camera orbit` is the recorder's: said before any window is looked for.
     let view = ["view", "mixed", "--camera", "orbit"];
     fails_saying(tumble().args(view), "turns the camera over a recording");
+    // A pitch past the vertical is refused, also before any window is looked for.
+    let view = ["view", "mixed", "--camera", "30,95"];
+    fails_saying(
+        tumble().args(view),
+        "the pitch must lie in -90..=90 degrees",
+    );
+    // A window smaller than the least one opened is said to be raised (it was without a word).
+    let output = tumble()
+        .args(["view", "mixed", "--size", "100x300"])
+        .env("DISPLAY", ":987")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    let raised = "warning: --size 100x300: the window opens at least 320x240, so at 320x300";
+    assert!(stderr.contains(raised), "{stderr}");
 }
 
 fn on_path(program: &str) -> bool {

@@ -98,7 +98,18 @@ const LONGEST_SENSIBLE_STEP: f64 = 0.1;
 const SHORTEST_SENSIBLE_STEP: f64 = 1e-7;
 
 impl SettingsArgs {
+    /// The settings the flags ask for, their warnings printed on standard error.
     pub fn settings(&self) -> anyhow::Result<Settings> {
+        let (settings, notes) = self.checked()?;
+        for note in notes {
+            eprintln!("warning: {note}");
+        }
+        Ok(settings)
+    }
+
+    /// The settings the flags ask for, with the warnings they earn (for a command that may
+    /// refuse the settings before they are worth a warning).
+    pub fn checked(&self) -> anyhow::Result<(Settings, Vec<String>)> {
         let mut s = if self.accurate {
             Settings::accurate()
         } else {
@@ -174,10 +185,8 @@ impl SettingsArgs {
         if let Some(v) = self.constraint_schedule {
             s.constraint_schedule = v;
         }
-        for note in self.ineffective(&s) {
-            eprintln!("warning: {note}");
-        }
-        Ok(s)
+        let notes = self.ineffective(&s);
+        Ok((s, notes))
     }
 
     /// Settings given that will not do what they say with the rest: a value accepted without a

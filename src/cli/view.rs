@@ -88,7 +88,8 @@ pub struct ViewArgs {
     /// Start with fixed bodies hidden, to see into a pile's bin (a panel toggle).
     #[arg(long)]
     pub no_fixed: bool,
-    /// Camera: YAW,PITCH[,DISTANCE[,X,Y,Z]] in degrees and scene units (default: framed scene).
+    /// Camera: YAW,PITCH[,DISTANCE[,X,Y,Z]] in degrees (pitch from -90 to 90) and scene units
+    /// (default: framed scene).
     #[arg(long, value_name = "SPEC", allow_hyphen_values = true)]
     pub camera: Option<String>,
     /// Compare with other settings: a second world of the scene stepped in lockstep and drawn
@@ -130,9 +131,9 @@ pub struct RecordArgs {
     /// Frame size [default: 1280x720, 640x360 for .gif].
     #[arg(long, value_name = "WxH", value_parser = parse_size)]
     pub size: Option<(u32, u32)>,
-    /// Camera: YAW,PITCH[,DISTANCE[,X,Y,Z]] in degrees and scene units (default: the scene
-    /// framed from yaw 35, pitch 25), or `orbit`: the framed scene turning once around its
-    /// vertical axis over the recording.
+    /// Camera: YAW,PITCH[,DISTANCE[,X,Y,Z]] in degrees (pitch from -90 to 90) and scene units
+    /// (default: the scene framed from yaw 35, pitch 25), or `orbit`: the framed scene turning
+    /// once around its vertical axis over the recording.
     #[arg(long, value_name = "SPEC", allow_hyphen_values = true)]
     pub camera: Option<String>,
     /// Compare with other settings: a second world of the scene stepped in lockstep and drawn
@@ -207,6 +208,15 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
             .apply_spec(spec)
             .map_err(anyhow::Error::msg)?;
     }
+    let (min_width, min_height) = tumble::viewer::MIN_WINDOW_SIZE;
+    let (width, height) = args.size;
+    if width < min_width || height < min_height {
+        eprintln!(
+            "warning: --size {width}x{height}: the window opens at least {min_width}x{min_height}, so at {}x{}",
+            width.max(min_width),
+            height.max(min_height)
+        );
+    }
     let world = args.scene.load(args.settings.settings()?)?;
     // Checked as the other outputs are: `--screenshot scene.txt` replaced the scene with a PNG.
     if let Some(shot) = &args.screenshot {
@@ -241,25 +251,52 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
     tumble::viewer::run_viewer(world, options)
 }
 
+/// Warnings on frames a recording will show otherwise than a user may expect.
+#[cfg(feature = "viewer")]
+fn warn_of_frames(kind: tumble::viewer::OutputKind, fps: f64, dts: &[f64]) {
+    let coarsest = dts.iter().copied().fold(0.0, f64::max);
+    let repeated = tumble::viewer::record::repeated_frame_share(fps, coarsest);
+    if repeated > 1e-9 {
+        eprintln!(
+            "warning: --fps {fps} is more frames than steps a simulated second (--dt {coarsest}): \
+             {:.0} % of the frames repeat the one before; a --dt of at most {:.4} gives each \
+             frame a step of its own",
+            100.0 * repeated,
+            1.0 / fps
+        );
+    }
+    // GIF delays are whole centiseconds, and players show those under 2 at 10 (browsers, most
+    // viewers): above 50 fps the file plays slower than it was recorded.
+    if kind == tumble::viewer::OutputKind::Gif && fps > 50.0 {
+        eprintln!(
+            "warning: --fps {fps}: most players show GIF frames shorter than 1/50 s at 1/10 s"
+        );
+    }
+}
+
 #[cfg(feature = "viewer")]
 pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     use tumble::viewer::{DrawOptions, OutputKind, RecordOptions};
     let kind = OutputKind::of(&args.output)?;
-    // GIF delays are whole centiseconds, and players show those under 2 at 10 (browsers, most
-    // viewers): above 50 fps the file plays slower than it was recorded.
-    if kind == OutputKind::Gif && args.fps > 50.0 && args.fps <= 1000.0 {
-        eprintln!(
-            "warning: --fps {}: most players show GIF frames shorter than 1/50 s at 1/10 s",
-            args.fps
-        );
+    let (settings, notes) = args.settings.checked()?;
+    let compare = compare_settings(args.compare.as_deref())?;
+    // Refused before the settings' warnings: `--dt 0` warned that nothing would move, then was
+    // refused.
+    let dts: Vec<f64> = std::iter::once(&settings)
+        .chain(&compare)
+        .map(|s| s.time_step)
+        .collect();
+    tumble::viewer::record::check_rates(args.seconds, args.fps, dts.iter().copied())?;
+    for note in notes {
+        eprintln!("warning: {note}");
     }
+    warn_of_frames(kind, args.fps, &dts);
     let (width, height) = args.size.unwrap_or(if kind == OutputKind::Gif {
         (640, 360)
     } else {
         (1280, 720)
     });
-    let compare = compare_settings(args.compare.as_deref())?;
-    let world = args.scene.load(args.settings.settings()?)?;
+    let world = args.scene.load(settings)?;
     let output = tumble::viewer::record::check_recording_output(&args.output, &world.inputs)?;
     let options = RecordOptions {
         output,
@@ -297,11 +334,14 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     }
     let frames = report.frames.max(1) as f64;
     println!(
-        "wrote {} ({width}x{height}, {:.2} s simulated in {} steps) to {} in {:.2} s: {:.1} ms/frame \
-         (simulate {:.1}, render+readback {:.1}, waiting for the encoder {:.1}; the encoder thread worked {:.1} ms/frame alongside) on {}",
+        "wrote {} ({width}x{height}, {:.2} s at {} fps, the last frame at simulated time {:.2} s \
+         after {}) to {} in {:.2} s: {:.1} ms/frame (simulate {:.1}, render+readback {:.1}, \
+         waiting for the encoder {:.1}; the encoder thread worked {:.1} ms/frame alongside) on {}",
         counted(report.frames, "frame", "frames"),
+        report.frames as f64 / args.fps,
+        args.fps,
         report.sim_time,
-        report.steps,
+        counted(report.steps, "step", "steps"),
         args.output.display(),
         report.wall_s,
         1e3 * report.wall_s / frames,

@@ -31,6 +31,10 @@ impl Default for OrbitCamera {
     }
 }
 
+/// Steepest pitch, radians above or below the horizon (88.8 degrees): at 90 the view direction
+/// lies along the up vector and the view turns about itself.
+pub const MAX_PITCH: f64 = 1.55;
+
 /// What the shaders need from the camera.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CameraMatrices {
@@ -130,10 +134,11 @@ impl OrbitCamera {
     /// Orbit by a mouse drag of `(dx, dy)` pixels.
     pub fn orbit(&mut self, dx: f64, dy: f64) {
         self.yaw -= dx * 0.008;
-        self.pitch = (self.pitch + dy * 0.008).clamp(-1.55, 1.55);
+        self.pitch = (self.pitch + dy * 0.008).clamp(-MAX_PITCH, MAX_PITCH);
     }
 
-    /// Move the target in the view plane by a drag of `(dx, dy)` pixels in a view `height` pixels tall.
+    /// Move the target in the view plane by a drag of `(dx, dy)` pixels in a view `height` pixels
+    /// tall.
     pub fn pan(&mut self, dx: f64, dy: f64, height: f64) {
         let forward = (self.target - self.eye()).normalize();
         let right = forward.cross(DVec3::Y).normalize_or(DVec3::X);
@@ -160,8 +165,18 @@ impl OrbitCamera {
                 "--camera '{spec}': expected YAW,PITCH[,DISTANCE[,X,Y,Z]] (2, 3 or 6 finite numbers)"
             ));
         }
+        // Past 90 degrees the camera would stand on its head; up to it, it stops at MAX_PITCH
+        // (95 was taken as 88.8 without a word).
+        if values[1].abs() > 90.0 {
+            return Err(format!(
+                "--camera '{spec}': the pitch must lie in -90..=90 degrees (from below to straight \
+                 down), got {}; the steepest view is {:.1}",
+                values[1],
+                MAX_PITCH.to_degrees()
+            ));
+        }
         self.yaw = values[0].to_radians();
-        self.pitch = values[1].to_radians().clamp(-1.55, 1.55);
+        self.pitch = values[1].to_radians().clamp(-MAX_PITCH, MAX_PITCH);
         if values.len() >= 3 {
             let (closest, farthest) = DISTANCE_RANGE;
             if !(closest..=farthest).contains(&values[2]) {
@@ -181,6 +196,22 @@ impl OrbitCamera {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A pitch past the vertical is refused; one up to it is taken at the steepest view.
+    #[test]
+    fn camera_specs_refuse_a_pitch_past_the_vertical() {
+        let mut camera = OrbitCamera::default();
+        let error = camera.apply_spec("30,95").unwrap_err();
+        assert!(
+            error.contains("the pitch must lie in -90..=90 degrees"),
+            "{error}"
+        );
+        assert!(camera.apply_spec("30,-90.5").is_err());
+        camera.apply_spec("30,90").unwrap();
+        assert_eq!(camera.pitch, MAX_PITCH);
+        camera.apply_spec("30,-45").unwrap();
+        assert!((camera.pitch + 45f64.to_radians()).abs() < 1e-15);
+    }
 
     #[test]
     fn ray_and_projection_agree() {

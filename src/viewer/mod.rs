@@ -77,3 +77,4 @@ pub use record::{FrameWriter, OutputKind, RecordOptions, RecordReport, record};
 pub use renderer::{DrawOptions, OffscreenRenderer, Renderer};
 pub use scene_source::SceneSource;
 pub use session::Session;
+pub use window::MIN_WINDOW_SIZE;

@@ -509,42 +509,56 @@ const MIN_MP4_FPS: f64 = 0.01;
 /// Most steps a recording takes (of each world).
 const MAX_RECORD_STEPS: f64 = 1e8;
 
+/// Rejects a length, frame rate and time steps (one a world) that cannot make a recording.
+pub fn check_rates(
+    seconds: f64,
+    fps: f64,
+    dts: impl IntoIterator<Item = f64>,
+) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        seconds.is_finite() && seconds >= 0.0,
+        "--seconds must be a non-negative number, got {seconds}"
+    );
+    for dt in dts {
+        anyhow::ensure!(
+            dt.is_finite() && dt > 0.0,
+            "the time step must be positive to record, got {dt}"
+        );
+        // --dt 5e-324 stepped for ever (time plus the step is the time again), past Ctrl-C,
+        // which is asked between frames.
+        let steps = seconds / dt;
+        // (Not three hundred digits for --seconds 1e300 or --dt 5e-324, nor a flag the user
+        // did not give.)
+        let short = |x: f64| match x.abs() {
+            a if a != 0.0 && !(1e-4..1e9).contains(&a) => format!("{x:e}"),
+            _ => x.to_string(),
+        };
+        anyhow::ensure!(
+            steps <= MAX_RECORD_STEPS,
+            "recording {} s takes {steps:.1e} steps of {} s, more than \
+             {MAX_RECORD_STEPS:.0e}: record fewer --seconds or take a longer --dt",
+            short(seconds),
+            short(dt)
+        );
+    }
+    anyhow::ensure!(
+        fps.is_finite() && fps > 0.0 && fps <= 1000.0,
+        "--fps must lie in (0, 1000], got {fps}"
+    );
+    Ok(())
+}
+
+/// The share of a recording's frames that show the same step as the frame before: frame k
+/// shows the step nearest k / fps, and at more frames than steps a second some share one.
+pub fn repeated_frame_share(fps: f64, dt: f64) -> f64 {
+    (1.0 - 1.0 / (fps * dt)).max(0.0)
+}
+
 impl RecordOptions {
     /// Rejects settings that cannot make a recording, with simulation time step `dt`.
     fn check(&self, dt: f64) -> anyhow::Result<()> {
-        anyhow::ensure!(
-            self.seconds.is_finite() && self.seconds >= 0.0,
-            "--seconds must be a non-negative number, got {}",
-            self.seconds
-        );
-        for dt in std::iter::once(dt).chain(self.compare.as_ref().map(|s| s.time_step)) {
-            anyhow::ensure!(
-                dt.is_finite() && dt > 0.0,
-                "the time step must be positive to record, got {dt}"
-            );
-            // --dt 5e-324 stepped for ever (time plus the step is the time again), past Ctrl-C,
-            // which is asked between frames.
-            let steps = self.seconds / dt;
-            // (Not three hundred digits for --seconds 1e300 or --dt 5e-324, nor a flag the
-            // user did not give.)
-            let short = |x: f64| match x.abs() {
-                a if a != 0.0 && !(1e-4..1e9).contains(&a) => format!("{x:e}"),
-                _ => x.to_string(),
-            };
-            anyhow::ensure!(
-                steps <= MAX_RECORD_STEPS,
-                "recording {} s takes {steps:.1e} steps of {} s, more than \
-                 {MAX_RECORD_STEPS:.0e}: record fewer --seconds or take a longer --dt",
-                short(self.seconds),
-                short(dt)
-            );
-        }
-        anyhow::ensure!(
-            self.fps.is_finite() && self.fps > 0.0 && self.fps <= 1000.0,
-            "--fps must lie in (0, 1000], got {}",
-            self.fps
-        );
-        Ok(())
+        let compared = self.compare.as_ref().map(|s| s.time_step);
+        check_rates(self.seconds, self.fps, std::iter::once(dt).chain(compared))
     }
 
     /// The camera over `world`: framed for one pane, then as `camera` says.

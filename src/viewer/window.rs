@@ -132,6 +132,9 @@ struct SurfaceSetup {
     copy_to_surface: bool,
 }
 
+/// Smallest window asked of the window system, in pixels (`view --size` below it is raised).
+pub const MIN_WINDOW_SIZE: (u32, u32) = (320, 240);
+
 impl Gfx {
     /// Opens a `width` x `height` window titled after `scene` on a device that can present to
     /// it, with the renderer holding `world`'s static data.
@@ -145,8 +148,8 @@ impl Gfx {
         let attributes = Window::default_attributes()
             .with_title(format!("tumble — {scene}"))
             .with_inner_size(winit::dpi::PhysicalSize::new(
-                width.max(320),
-                height.max(240),
+                width.max(MIN_WINDOW_SIZE.0),
+                height.max(MIN_WINDOW_SIZE.1),
             ));
         let window = Arc::new(
             event_loop
