@@ -47,6 +47,14 @@ fn json_summary_has_the_documented_fields() {
         "50 steps of 0.02 s"
     );
     assert_eq!(v["bodies"], 18);
+    // The scene's constraint file holds 16 records, each a lower and an upper inequality.
+    let file = std::fs::read_to_string("scenes/two-chain-constraints.txt").unwrap();
+    let declared = file.lines().find(|l| !l.starts_with('#')).unwrap().trim();
+    assert_eq!(v["constraint_records"].to_string(), declared);
+    assert_eq!(
+        v["constraints"],
+        2 * v["constraint_records"].as_u64().unwrap()
+    );
     assert_eq!(v["finite"], true);
 }
 
@@ -124,6 +132,29 @@ fn bodies_that_blow_up_are_named_and_the_run_goes_on() {
         stdout.contains("all values finite: false (20 bodies blew up and were frozen: 4, 5,"),
         "{stdout}"
     );
+}
+
+/// The text summary stays readable at any size: a change of energy past a billion percent and
+/// a violation of a billion units in scientific notation (twenty digits before), one step in
+/// the singular.
+#[test]
+fn the_summary_writes_huge_figures_shortly() {
+    let out = succeeded(tumble().args(["run", "cube", "--dt", "1e9", "--steps", "3"]));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let line = |start: &str| stdout.lines().find(|l| l.starts_with(start)).unwrap();
+    let energy = line("energy ");
+    let change = &energy[energy.find('(').unwrap() + 1..energy.find("%)").unwrap()];
+    let value: f64 = change.parse().unwrap();
+    assert!(value > 1e9 && change.len() < 12, "{energy}");
+    let visits = line("constraint visits");
+    let worst = visits.rsplit("worst violation ").next().unwrap();
+    assert!(
+        worst.parse::<f64>().unwrap() > 1e9 && worst.len() < 14,
+        "{visits}"
+    );
+    let out = succeeded(tumble().args(["run", "cube", "--steps", "1"]));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("\n1 step (0.02 s simulated)"), "{stdout}");
 }
 
 #[cfg(unix)]
@@ -353,5 +384,24 @@ fn bench_replot_draws_the_committed_runs_plots_with_readable_ticks() {
         }
         assert!(legend >= 2, "{svg}: {legend} legend entries");
     }
+    // A malformed accuracy.json is named, and scale.json's plots are drawn all the same.
+    std::fs::write(dir.join("accuracy.json"), "{ \"free_fall\": [").unwrap();
+    for svg in std::fs::read_dir(&dir).unwrap().flatten() {
+        if svg.path().extension().is_some_and(|e| e == "svg") {
+            std::fs::remove_file(svg.path()).unwrap();
+        }
+    }
+    let out = tumble()
+        .args(["bench", "replot"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(!out.status.success(), "{stdout}");
+    assert!(stderr.contains("accuracy.json"), "{stderr}");
+    assert_eq!(stdout.matches("wrote ").count(), 4, "{stdout}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -37,7 +37,11 @@ pub struct RunSummary {
     pub wall_s: f64,
     pub steps_per_s: f64,
     pub bodies: usize,
+    /// Constraint inequalities: two a distance constraint record, its lower and its upper bound
+    /// (the coursework's M counts them so).
     pub constraints: usize,
+    /// Distance constraint records (lines of the constraint file).
+    pub constraint_records: usize,
     pub contacts: usize,
     /// Box-against-box tests the broad phase made.
     pub pairs_tested: usize,
@@ -238,6 +242,7 @@ impl RunSummary {
             steps_per_s: 0.0,
             bodies: world.bodies.len(),
             constraints: world.constraints.len(),
+            constraint_records: world.constraints.iter().filter(|c| !c.is_upper).count(),
             contacts: 0,
             pairs_tested: 0,
             narrow_phase_queries: 0,
@@ -303,8 +308,7 @@ impl RunSummary {
 
 /// The text summary, into `out`.
 fn print_summary(out: &mut impl Write, s: &RunSummary) -> std::io::Result<()> {
-    // Each constraint record is a lower and an upper inequality (the coursework's M counts both).
-    let records = s.constraints / 2;
+    let records = s.constraint_records;
     let inequalities = match s.constraints {
         0 => String::new(),
         n => format!(" ({n} inequalities)"),
@@ -322,8 +326,8 @@ fn print_summary(out: &mut impl Write, s: &RunSummary) -> std::io::Result<()> {
     )?;
     writeln!(
         out,
-        "{} steps ({} s simulated) in {:.3} s wall: {:.0} steps/s",
-        s.steps,
+        "{} ({} s simulated) in {:.3} s wall: {:.0} steps/s",
+        counted(s.steps, "step", "steps"),
         super::decimals(s.sim_time, 2),
         s.wall_s,
         s.steps_per_s
@@ -346,14 +350,17 @@ fn print_summary(out: &mut impl Write, s: &RunSummary) -> std::io::Result<()> {
     if s.constraints > 0 && s.settings.solver == tumble::sim::settings::Solver::SoftStep {
         writeln!(
             out,
-            "joint projections cut short {}, worst violation {:.4}",
-            s.joint_projections_cut_short, s.max_constraint_violation
+            "joint projections cut short {}, worst violation {}",
+            s.joint_projections_cut_short,
+            super::decimals(s.max_constraint_violation, 4)
         )?;
     } else if s.constraints > 0 {
         writeln!(
             out,
-            "constraint visits {}, budget hit in {} steps, worst violation {:.4}",
-            s.constraint_visits, s.budget_hits, s.max_constraint_violation
+            "constraint visits {}, budget hit in {}, worst violation {}",
+            s.constraint_visits,
+            counted(s.budget_hits, "step", "steps"),
+            super::decimals(s.max_constraint_violation, 4)
         )?;
     }
     print_state_at_end(out, s)
@@ -361,12 +368,15 @@ fn print_summary(out: &mut impl Write, s: &RunSummary) -> std::io::Result<()> {
 
 /// The summary's lines on the state the run ended in: energy, sleep, blow-ups, stage times.
 fn print_state_at_end(out: &mut impl Write, s: &RunSummary) -> std::io::Result<()> {
+    let change = 100.0 * (s.energy_end - s.energy_start) / s.energy_start.abs().max(1e-300);
+    // Past a billion percent in scientific notation (`--dt 1e9` printed twenty digits).
+    let sign = if change >= 0.0 { "+" } else { "" };
     writeln!(
         out,
-        "energy {:.6e} -> {:.6e} ({:+.3}%)",
+        "energy {:.6e} -> {:.6e} ({sign}{}%)",
         s.energy_start,
         s.energy_end,
-        100.0 * (s.energy_end - s.energy_start) / s.energy_start.abs().max(1e-300)
+        super::decimals(change, 3)
     )?;
     if s.joint_groups_relaxed > 0 {
         writeln!(
