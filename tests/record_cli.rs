@@ -776,8 +776,11 @@ fn record_survives_ctrl_c() {
         std::thread::sleep(std::time::Duration::from_millis(50));
     }
     if child.try_wait().unwrap().is_none() {
-        unsafe {
-            libc::kill(child.id() as libc::pid_t, libc::SIGINT);
+        // Twice at once, as `timeout -s INT` sends it: the copy does not stop it at once.
+        for _ in 0..2 {
+            unsafe {
+                libc::kill(child.id() as libc::pid_t, libc::SIGINT);
+            }
         }
     }
     let output = child.wait_with_output().unwrap();

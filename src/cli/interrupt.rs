@@ -1,30 +1,70 @@
 //! Ctrl-C, and SIGTERM where asked: the first one sets a flag so that runs and recordings finish
 //! what they have into valid files (a `timeout` that sent SIGTERM left `.NAME.partial` files
-//! behind); any second one terminates as usual.
+//! behind); any later one terminates as usual. A copy of the first that arrives with it is not
+//! a later one: GNU `timeout` sends its signal to the command and then to the command's process
+//! group, and the copy ended 3 in 30 `timeout -s INT` recordings at once, leaving no file.
 
-use std::sync::atomic::{AtomicI32, Ordering};
+use std::sync::atomic::{AtomicI32, AtomicI64, Ordering};
 
 /// The signal that interrupted the run, or 0.
 static SIGNAL: AtomicI32 = AtomicI32::new(0);
 
+/// When the first signal came, in nanoseconds of the monotonic clock.
+#[cfg(unix)]
+static FIRST_AT_NS: AtomicI64 = AtomicI64::new(0);
+
+/// Signals this soon after the first are copies of it (one sender's two deliveries take
+/// microseconds; a person pressing Ctrl-C twice takes over a tenth of a second).
+#[cfg(unix)]
+const COPY_WITHIN_NS: i64 = 50_000_000;
+
 /// Said when the first signal arrives: a step or a frame may take long (a huge constraint
 /// budget, a tiny dt), and a user who sees nothing happen would not know a second one ends it.
+#[cfg(unix)]
 const FINISHING: &[u8] =
     b"\ninterrupted: finishing the current step and writing what is done; press Ctrl-C again to stop at once\n";
 
+/// The monotonic clock in nanoseconds (clock_gettime is async-signal-safe).
+#[cfg(unix)]
+fn monotonic_ns() -> i64 {
+    let mut now = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: a valid pointer to a timespec the call fills.
+    unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut now) };
+    (now.tv_sec as i64)
+        .saturating_mul(1_000_000_000)
+        .saturating_add(now.tv_nsec as i64)
+}
+
+#[cfg(unix)]
 extern "C" fn on_signal(signal: libc::c_int) {
+    let now = monotonic_ns();
     // The first signal is the one the exit status reports.
-    let _ = SIGNAL.compare_exchange(0, signal, Ordering::SeqCst, Ordering::SeqCst);
-    // Async-signal-safe: write(2), and back to the default action for the next one, of either
-    // kind.
+    if SIGNAL
+        .compare_exchange(0, signal, Ordering::SeqCst, Ordering::SeqCst)
+        .is_ok()
+    {
+        FIRST_AT_NS.store(now, Ordering::SeqCst);
+        // SAFETY: write(2) is async-signal-safe.
+        unsafe {
+            libc::write(
+                libc::STDERR_FILENO,
+                FINISHING.as_ptr().cast(),
+                FINISHING.len(),
+            );
+        }
+        return;
+    }
+    if now.saturating_sub(FIRST_AT_NS.load(Ordering::SeqCst)) < COPY_WITHIN_NS {
+        return;
+    }
+    // A later signal: its default action, at once. signal(2) and raise(3) are
+    // async-signal-safe.
     unsafe {
-        libc::write(
-            libc::STDERR_FILENO,
-            FINISHING.as_ptr().cast(),
-            FINISHING.len(),
-        );
-        libc::signal(libc::SIGINT, libc::SIG_DFL);
-        libc::signal(libc::SIGTERM, libc::SIG_DFL);
+        libc::signal(signal, libc::SIG_DFL);
+        libc::raise(signal);
     }
 }
 
