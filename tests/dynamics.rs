@@ -547,6 +547,40 @@ fn restitution_threshold_applies_only_to_approaching_contacts() {
     );
 }
 
+/// The worst violation as a share of its rest length is the violation over the distance the
+/// points started at, measured here from the starting poses (the built-in chains, stretched
+/// past their bounds by a coarse step and a small budget).
+#[test]
+fn relative_violations_share_the_starting_distance() {
+    let settings = Settings {
+        time_step: 0.04,
+        max_iterations: 40,
+        ..Settings::default()
+    };
+    let mut world =
+        tumble::scene::load("two-chain", &tumble::ConstraintsChoice::Auto, settings).unwrap();
+    let start: Vec<f64> = world
+        .constraints
+        .iter()
+        .map(|c| {
+            let (p1, p2) = c.points(&world.bodies);
+            (p1 - p2).length()
+        })
+        .collect();
+    for _ in 0..50 {
+        world.step();
+    }
+    let (absolute, relative) = world.worst_constraint_violations();
+    let mut expected = (0.0f64, 0.0f64);
+    for (c, d0) in world.constraints.iter().zip(&start) {
+        let outside = c.violation(&world.bodies);
+        expected = (expected.0.max(outside), expected.1.max(outside / d0));
+    }
+    assert!(expected.1 > 1e-3, "the chains held: {expected:?}");
+    assert_close(absolute, expected.0, 1e-9, "worst violation");
+    assert_close(relative, expected.1, 1e-9, "worst relative violation");
+}
+
 #[test]
 fn coursework_two_chain_at_defaults_spends_the_skeletons_budget() {
     let Some(dir) = coursework_dir() else { return };

@@ -38,7 +38,7 @@ const COLORS: [RGBColor; 12] = [
 
 /// A log axis's tick to three figures: `1e-4`, `0.003`, `1000`.
 fn tick_label(v: f64) -> String {
-    crate::io::tick_label(v, 3)
+    crate::io::significant(v, 3)
 }
 
 /// Width of the picture's legend column, right of the plot: a legend inside the plot hid the

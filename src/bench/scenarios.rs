@@ -645,7 +645,7 @@ fn chains(run: &Run) -> Measured {
         Scenario::Chains.duration(),
         |w, stats| {
             for c in &w.constraints {
-                worst = worst.max(c.violation(&w.bodies) / c.rest_length);
+                worst = worst.max(c.relative_violation(&w.bodies));
             }
             visits += stats.constraint_visits;
             steps += 1;

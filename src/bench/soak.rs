@@ -56,7 +56,7 @@ impl Watch {
             }
         }
         for c in &world.constraints {
-            self.worst = self.worst.max(c.violation(&world.bodies) / c.rest_length);
+            self.worst = self.worst.max(c.relative_violation(&world.bodies));
         }
     }
 }

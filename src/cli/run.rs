@@ -62,7 +62,11 @@ pub struct RunSummary {
     /// Energy of the bodies frozen because their state blew up (at their last finite pose).
     pub energy_frozen: f64,
     pub max_penetration: f64,
+    /// Largest distance, in scene units, by which a constraint lay outside its bound after a
+    /// step.
     pub max_constraint_violation: f64,
+    /// The same as a share of the constraint's rest length (the bench's chains metric).
+    pub max_relative_constraint_violation: f64,
     pub finite: bool,
     pub quarantined: Vec<usize>,
     /// Bodies asleep after the last step (soft-step solver).
@@ -256,7 +260,8 @@ impl RunSummary {
             energy_end: energy_start,
             energy_frozen: 0.0,
             max_penetration: 0.0,
-            max_constraint_violation: world.max_constraint_violation(),
+            max_constraint_violation: world.worst_constraint_violations().0,
+            max_relative_constraint_violation: world.worst_constraint_violations().1,
             finite: world.all_finite(),
             quarantined: Vec::new(),
             asleep_at_end: 0,
@@ -282,9 +287,10 @@ impl RunSummary {
         self.joint_groups_relaxed = stats.joint_groups_relaxed;
         self.substeps_taken += stats.substeps as u64;
         if !world.constraints.is_empty() {
-            self.max_constraint_violation = self
-                .max_constraint_violation
-                .max(world.max_constraint_violation());
+            let (absolute, relative) = world.worst_constraint_violations();
+            self.max_constraint_violation = self.max_constraint_violation.max(absolute);
+            self.max_relative_constraint_violation =
+                self.max_relative_constraint_violation.max(relative);
         }
     }
 
@@ -352,7 +358,7 @@ fn print_summary(out: &mut impl Write, s: &RunSummary) -> std::io::Result<()> {
             out,
             "joint projections cut short {}, worst violation {}",
             s.joint_projections_cut_short,
-            super::decimals(s.max_constraint_violation, 4)
+            worst_violation(s)
         )?;
     } else if s.constraints > 0 {
         writeln!(
@@ -360,10 +366,19 @@ fn print_summary(out: &mut impl Write, s: &RunSummary) -> std::io::Result<()> {
             "constraint visits {}, budget hit in {}, worst violation {}",
             s.constraint_visits,
             counted(s.budget_hits, "step", "steps"),
-            super::decimals(s.max_constraint_violation, 4)
+            worst_violation(s)
         )?;
     }
     print_state_at_end(out, s)
+}
+
+/// The worst constraint violation in scene units and as a share of its rest length.
+fn worst_violation(s: &RunSummary) -> String {
+    format!(
+        "{} ({} of the rest length)",
+        super::decimals(s.max_constraint_violation, 4),
+        tumble::io::significant(s.max_relative_constraint_violation, 2)
+    )
 }
 
 /// The summary's lines on the state the run ended in: energy, sleep, blow-ups, stage times.

@@ -31,10 +31,10 @@ pub fn counted(n: impl Into<u64>, one: &str, many: &str) -> String {
     format!("{n} {}", if n == 1 { one } else { many })
 }
 
-/// `v` as a reader writes an axis tick, to `figures` significant figures: plainly from 1e-3 to
-/// under 1e6 (`0.003`, `1000`), in scientific notation outside (`1e-4`, `1.15e10`). Ticks came
-/// as computed (`9.999999999999999e-5`) or in full (`11500000000`).
-pub fn tick_label(v: f64, figures: usize) -> String {
+/// `v` to `figures` significant figures as a reader writes it (an axis's tick, a ratio): plainly
+/// from 1e-3 to under 1e6 (`0.003`, `1000`), in scientific notation outside (`1e-4`,
+/// `1.15e10`). Ticks came as computed (`9.999999999999999e-5`) or in full (`11500000000`).
+pub fn significant(v: f64, figures: usize) -> String {
     let places = figures.clamp(1, 17) - 1;
     let rounded: f64 = format!("{v:.places$e}").parse().unwrap_or(v);
     if rounded == 0.0 || (1e-3..1e6).contains(&rounded.abs()) {
@@ -138,7 +138,7 @@ impl std::error::Error for LoadError {}
 
 #[cfg(test)]
 mod tests {
-    use super::{counted, tick_figures, tick_label};
+    use super::{counted, significant, tick_figures};
 
     #[test]
     fn ticks_read_as_written() {
@@ -151,14 +151,14 @@ mod tests {
             (2.5e6, "2.5e6"),
         ];
         for (v, label) in cases {
-            assert_eq!(tick_label(v, 3), label);
+            assert_eq!(significant(v, 3), label);
         }
     }
 
     /// An axis's ticks keep the figures that tell them apart, and no more.
     #[test]
     fn ticks_keep_the_figures_their_spacing_needs() {
-        let label = |v: f64, spacing: f64| tick_label(v, tick_figures(v, spacing));
+        let label = |v: f64, spacing: f64| significant(v, tick_figures(v, spacing));
         assert_eq!(label(1.15e10, 5e7), "1.15e10");
         assert_eq!(label(1.2e10, 5e7), "1.2e10");
         assert_eq!(label(1125.97 + 1e-12, 1e-3), "1125.97");

@@ -77,6 +77,21 @@ impl DistanceConstraint {
         }
     }
 
+    /// The violation as a share of the distance the scene placed the points at.
+    pub fn relative_violation(&self, bodies: &[RigidBody]) -> f64 {
+        self.share_of_rest_length(self.violation(bodies))
+    }
+
+    /// A length as a share of the rest length (itself for points placed together, which have
+    /// no length to share).
+    pub fn share_of_rest_length(&self, length: f64) -> f64 {
+        if self.rest_length > 0.0 {
+            length / self.rest_length
+        } else {
+            length
+        }
+    }
+
     /// Current points, unit direction from point 2 to point 1, and distance; None when the
     /// points coincide (no direction: no correction rather than NaN) or are not finite.
     pub(crate) fn direction(

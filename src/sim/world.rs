@@ -285,10 +285,19 @@ impl World {
 
     /// Largest distance by which any constraint lies outside its bound.
     pub fn max_constraint_violation(&self) -> f64 {
+        self.worst_constraint_violations().0
+    }
+
+    /// The largest distance by which any constraint lies outside its bound, and the largest
+    /// violation as a share of its constraint's rest length, in one pass.
+    pub fn worst_constraint_violations(&self) -> (f64, f64) {
         self.constraints
             .iter()
-            .map(|c| c.violation(&self.bodies))
-            .fold(0.0, f64::max)
+            .fold((0.0f64, 0.0f64), |(absolute, relative), c| {
+                let violation = c.violation(&self.bodies);
+                let share = c.share_of_rest_length(violation);
+                (absolute.max(violation), relative.max(share))
+            })
     }
 
     pub fn all_finite(&self) -> bool {

@@ -794,7 +794,7 @@ fn plots_ui(ui: &mut egui::Ui, session: &Session) {
             // Figures enough to tell the ticks apart (the energy axis read 11500000000).
             .y_axis_formatter(|mark, _| {
                 let figures = crate::io::tick_figures(mark.value, mark.step_size);
-                crate::io::tick_label(mark.value, figures)
+                crate::io::significant(mark.value, figures)
             });
         if legend {
             plot.legend(egui_plot::Legend::default())
