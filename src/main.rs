@@ -23,8 +23,9 @@ enum Command {
     Record(cli::view::RecordArgs),
     /// Simulate headless and print a summary (or JSON).
     Run(cli::run::RunArgs),
-    /// Benchmarks: `scale` (run time against scene size), `accuracy` (error against run time) and
-    /// `soak` (100,000 steps: drift, violation, energy).
+    /// Benchmarks: `scale` (run time against scene size), `accuracy` (error against run time),
+    /// `soak` (100,000 steps: drift, violation, energy) and `replot` (an earlier run's plots
+    /// from its JSON).
     #[command(subcommand)]
     Bench(BenchCommand),
     /// List the built-in scenes and the generated families.
@@ -47,7 +48,8 @@ struct DefaultView {
 
 #[derive(Subcommand)]
 enum BenchCommand {
-    /// ms/step against N for generated scenes: the coursework's loop vs tumble on 1 and all cores.
+    /// ms/step against N for generated scenes: the coursework's loop, both of tumble's solvers
+    /// on 1 and all cores, and Rapier in a build with --features compare-rapier.
     Scale(cli::bench::ScaleArgs),
     /// Error against run time per scenario, setting combination and time step (run time: the
     /// fastest of a job's runs: three, and more until its steps took 0.1 s, at most 15,

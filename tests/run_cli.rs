@@ -268,6 +268,16 @@ fn bench_accuracy_json_beside_the_csv_matches_it() {
             .collect();
         assert_eq!(dts, ["0.04"], "{combination}");
     }
+    // The table printed is written beside them too, each value as the JSON holds it.
+    let table = std::fs::read_to_string(dir.join("accuracy.txt")).unwrap();
+    assert!(table.contains("free_fall (position_error"), "{table}");
+    for combination in ["coursework", "gyroscopic"] {
+        let row = table.lines().find(|l| l.starts_with(combination)).unwrap();
+        let value = json["free_fall"][combination]["0.04"]["metrics"]["position_error"]
+            .as_f64()
+            .unwrap();
+        assert!(row.contains(&format!("{value:.3e}")), "{row}");
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }
 

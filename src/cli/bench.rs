@@ -4,6 +4,7 @@
 use super::ProgressBar;
 use clap::Args;
 use serde::Serialize;
+use std::fmt::Write as _;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use tumble::Settings;
@@ -50,7 +51,8 @@ pub struct ScaleArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
     pub json: bool,
-    /// Folder for the CSV and the plots.
+    /// Folder for the table (.txt), the CSV, the JSON (which `bench replot` reads) and the
+    /// plots.
     #[arg(long, default_value = "bench-out")]
     pub out: PathBuf,
 }
@@ -75,7 +77,8 @@ pub struct AccuracyArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
     pub json: bool,
-    /// Folder for the CSV and the plots.
+    /// Folder for the table (.txt), the CSV, the JSON (which `bench replot` reads) and the
+    /// plots.
     #[arg(long, default_value = "bench-out")]
     pub out: PathBuf,
 }
@@ -179,29 +182,33 @@ pub fn scale(args: &ScaleArgs) -> anyhow::Result<()> {
         );
     }
     let report = tumble::bench::scale::run(&config, &ProgressBar::default())?;
-    print_or_table(args.json, &report, &report.csv, || {
-        println!("machine: {}", report.machine.describe());
-        print_scale(&report)
+    print_or_table(args.json, &report, &report.csv, |out| {
+        writeln!(out, "machine: {}", report.machine.describe())?;
+        print_scale(out, &report)
     })
 }
 
-/// With `--json` prints `value` as JSON, else the `table`; either way the JSON is written beside
-/// the CSV (`beside` with the extension `.json`), so a folder's JSON, CSV and plots are always
-/// from the same run.
+/// With `--json` prints `value` as JSON, else the `table`; either way the JSON and the table
+/// are written beside the CSV (`beside` with the extensions `.json` and `.txt`), so a folder's
+/// JSON, CSV, table and plots are always from the same run.
 fn print_or_table<T: Serialize>(
     json: bool,
     value: &T,
     beside: &Path,
-    table: impl FnOnce(),
+    table: impl FnOnce(&mut String) -> std::fmt::Result,
 ) -> anyhow::Result<()> {
     let text = serde_json::to_string_pretty(value)?;
     let path = beside.with_extension("json");
     tumble::io::write_file_atomically(&path, |w| w.write_all(text.as_bytes()))?;
+    let mut lines = String::new();
+    table(&mut lines)?;
+    let txt = beside.with_extension("txt");
+    tumble::io::write_file_atomically(&txt, |w| w.write_all(lines.as_bytes()))?;
     if json {
         println!("{text}");
     } else {
-        table();
-        println!("wrote {}", path.display());
+        print!("{lines}");
+        println!("wrote {} and {}", path.display(), txt.display());
     }
     Ok(())
 }
@@ -249,8 +256,9 @@ fn scale_row(key: &str, v: &str, m: &tumble::bench::scale::Measurement) -> Strin
     )
 }
 
-fn print_scale(report: &ScaleReport) {
-    println!(
+fn print_scale(out: &mut String, report: &ScaleReport) -> std::fmt::Result {
+    writeln!(
+        out,
         "{:<14} {:<18} {:>9} {:>9} {:>8} {:>8} {:>8} {:>8} {:>8} {:>7} {:>8} {:>7}",
         "scene",
         "variant",
@@ -264,30 +272,32 @@ fn print_scale(report: &ScaleReport) {
         "visits",
         "peakMiB",
         "asleep"
-    );
+    )?;
     for (key, by_variant) in &report.results {
         for (variant, m) in by_variant {
-            println!("{}", scale_row(key, variant, m));
+            writeln!(out, "{}", scale_row(key, variant, m))?;
         }
         if let Some(sp) = report.speedups.get(key) {
             let parts: Vec<String> = sp.iter().map(|(k, v)| format!("{k} = {v:.2}x")).collect();
             if !parts.is_empty() {
-                println!("{:<14} {}", "", parts.join(", "));
+                writeln!(out, "{:<14} {}", "", parts.join(", "))?;
             }
         }
     }
-    println!(
+    writeln!(
+        out,
         "\nms/step: median over the measured steps; a run whose steps took under a second in all \
          was run again, up to five times in all, each step taking its median time over the runs \
          (`runs` in the CSV and JSON). pile-N is watched on for {}x the steps and the time cap, \
          for its pile to land and come to rest: its median, stages and ratios cover the first \
          steps as every scene's do; late: the median over the last fifth of all its steps.",
         tumble::bench::scale::PILE_WINDOW
-    );
+    )?;
     if !report.growth.is_empty() {
-        println!(
+        writeln!(
+            out,
             "\ngrowth from one size to the next (larger median / smaller, over the steps both measured):"
-        );
+        )?;
         for (family, by_variant) in &report.growth {
             for (variant, steps) in by_variant {
                 let mut steps: Vec<_> = steps.iter().collect();
@@ -297,22 +307,24 @@ fn print_scale(report: &ScaleReport) {
                 });
                 let parts: Vec<String> =
                     steps.iter().map(|(k, v)| format!("{k}: {v:.1}x")).collect();
-                println!("  {family:<8} {variant:<18} {}", parts.join(", "));
+                writeln!(out, "  {family:<8} {variant:<18} {}", parts.join(", "))?;
             }
         }
     }
     if !report.left_out.is_empty() {
-        println!("\nleft out:");
+        writeln!(out, "\nleft out:")?;
         for why in &report.left_out {
-            println!("  {why}");
+            writeln!(out, "  {why}")?;
         }
     }
-    println!(
+    writeln!(
+        out,
         "\nratios a_over_b: a's median ms / b's, over the steps both runs measured (a run cut by the time cap measured fewer)"
-    );
-    println!("accurate variants: {}", report.accurate_settings);
-    println!("{}", report.rapier);
-    println!(
+    )?;
+    writeln!(out, "accurate variants: {}", report.accurate_settings)?;
+    writeln!(out, "{}", report.rapier)?;
+    writeln!(
+        out,
         "wrote {} and {}",
         report.csv.display(),
         report
@@ -321,7 +333,8 @@ fn print_scale(report: &ScaleReport) {
             .map(|p| p.display().to_string())
             .collect::<Vec<_>>()
             .join(", ")
-    );
+    )?;
+    Ok(())
 }
 
 pub fn accuracy(args: &AccuracyArgs) -> anyhow::Result<()> {
@@ -333,47 +346,51 @@ pub fn accuracy(args: &AccuracyArgs) -> anyhow::Result<()> {
         out: args.out.clone(),
     };
     let report = tumble::bench::accuracy::run(&config, &ProgressBar::default())?;
-    print_or_table(args.json, &report.results, &report.csv, || {
-        println!("machine: {}", report.machine.describe());
-        print_accuracy(&report)
+    print_or_table(args.json, &report.results, &report.csv, |out| {
+        writeln!(out, "machine: {}", report.machine.describe())?;
+        print_accuracy(out, &report)
     })
 }
 
-fn print_accuracy(report: &AccuracyReport) {
+fn print_accuracy(out: &mut String, report: &AccuracyReport) -> std::fmt::Result {
     for (scenario_name, by_combo) in &report.results {
         let metric = primary_metric_of(scenario_name);
-        println!(
+        writeln!(
+            out,
             "\n{scenario_name} ({metric}; wall ms per simulated second in brackets, fastest of \
              repeated runs)"
-        );
-        print!("{:<24}", "combination \\ dt");
+        )?;
+        write!(out, "{:<24}", "combination \\ dt")?;
         for dt in &report.dts {
-            print!("{:>22}", dt);
+            write!(out, "{:>22}", dt)?;
         }
-        println!();
+        writeln!(out)?;
         for (combo, by_dt) in by_combo {
-            print!("{combo:<24}");
+            write!(out, "{combo:<24}")?;
             for dt in &report.dts {
                 match by_dt.get(&format!("{dt}")) {
-                    Some(r) => print!(
+                    Some(r) => write!(
+                        out,
                         "{:>22}",
                         format!(
                             "{:.3e} [{:.2}]",
                             r.metrics.get(metric).copied().unwrap_or(f64::NAN),
                             1000.0 * r.wall_per_sim_second
                         )
-                    ),
-                    None => print!("{:>22}", "-"),
+                    )?,
+                    None => write!(out, "{:>22}", "-")?,
                 }
             }
-            println!();
+            writeln!(out)?;
         }
     }
-    println!(
+    writeln!(
+        out,
         "\nwrote {} and {} plots beside it",
         report.csv.display(),
         report.plots.len(),
-    );
+    )?;
+    Ok(())
 }
 
 #[derive(Debug, Args)]
