@@ -33,9 +33,9 @@ fn monotonic_ns() -> i64 {
     };
     // SAFETY: a valid pointer to a timespec the call fills.
     unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut now) };
-    (now.tv_sec as i64)
+    now.tv_sec
         .saturating_mul(1_000_000_000)
-        .saturating_add(now.tv_nsec as i64)
+        .saturating_add(now.tv_nsec)
 }
 
 #[cfg(unix)]
