@@ -76,6 +76,37 @@ fn missing_files() {
         Some(2),
         "not found",
     );
+    // A name that differs from the file's only in case (written where names ignore case), and
+    // a Windows drive path, are said to be so.
+    dir.write("Tet.MESH", TET);
+    // (Only where names are case-sensitive: elsewhere tet.mesh is Tet.MESH.)
+    if !dir.0.join("tet.mesh").exists() {
+        expect(
+            load(&dir, "1\ntet.mesh 1 0 0 0 0 1 0 0 0\n", None),
+            "s-scene.txt",
+            Some(2),
+            "not found (looked for",
+        );
+        expect(
+            load(&dir, "1\ntet.mesh 1 0 0 0 0 1 0 0 0\n", None),
+            "s-scene.txt",
+            Some(2),
+            "; 'Tet.MESH' beside it differs only in case, and names are case-sensitive here",
+        );
+    }
+    expect(
+        load(&dir, "1\nC:\\meshes\\t.mesh 1 0 0 0 0 1 0 0 0\n", None),
+        "s-scene.txt",
+        Some(2),
+        "a Windows drive path: give the mesh's path relative to the scene file",
+    );
+    let plain = load(&dir, "1\nabsent.mesh 1 0 0 0 0 1 0 0 0\n", None)
+        .err()
+        .unwrap();
+    assert!(
+        plain.message.ends_with(')'),
+        "no hint where none applies: {plain}"
+    );
     expect(
         load(&dir, "1\nabsent.obj 1 0 0 0 0 1 0 0 0\n", None),
         "s-scene.txt",

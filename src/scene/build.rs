@@ -344,6 +344,24 @@ fn mesh_path_in(source: &dyn FileSource, folder: &Path, written: &str) -> PathBu
     }
 }
 
+/// What may have led a scene's mesh path astray: a file whose name differs only in case (a
+/// scene written where names ignore case), or a Windows drive path (only its backslashes are
+/// read as slashes).
+fn missing_mesh_hint(source: &dyn FileSource, mesh_path: &Path, written: &str) -> String {
+    if let Some(alike) = source.named_alike(mesh_path) {
+        let name = alike.file_name().map(|n| n.to_string_lossy().into_owned());
+        return format!(
+            "; '{}' beside it differs only in case, and names are case-sensitive here",
+            name.unwrap_or_default()
+        );
+    }
+    let drive = written.as_bytes();
+    if drive.len() > 2 && drive[0].is_ascii_alphabetic() && drive[1] == b':' {
+        return "; a Windows drive path: give the mesh's path relative to the scene file".into();
+    }
+    String::new()
+}
+
 fn load_shape(
     source: &dyn FileSource,
     mesh_path: &Path,
@@ -369,9 +387,10 @@ fn load_shape(
             scene_path,
             Some(record.line),
             format!(
-                "mesh file '{}' {problem} (looked for {})",
+                "mesh file '{}' {problem} (looked for {}){}",
                 record.mesh_path,
-                mesh_path.display()
+                mesh_path.display(),
+                missing_mesh_hint(source, mesh_path, &record.mesh_path)
             ),
         ));
     }

@@ -2,7 +2,7 @@
 //! own scenes and meshes compiled into the binary.
 
 use crate::io::{LoadError, limits};
-use std::path::{Component, Path};
+use std::path::{Component, Path, PathBuf};
 
 /// Files compiled into the binary, addressed by their path in the repository.
 const EMBEDDED: &[(&str, &str)] = &[
@@ -77,6 +77,11 @@ pub(super) trait FileSource {
     fn on_disk(&self) -> bool {
         false
     }
+    /// A file beside `path` whose name differs from its only in case (`Box.MESH` for
+    /// `box.mesh`, found on a file system that ignores case and not on this one).
+    fn named_alike(&self, _path: &Path) -> Option<PathBuf> {
+        None
+    }
 }
 
 pub(super) struct Disk;
@@ -111,6 +116,15 @@ impl FileSource for Disk {
     }
     fn on_disk(&self) -> bool {
         true
+    }
+    fn named_alike(&self, path: &Path) -> Option<PathBuf> {
+        let name = path.file_name()?.to_str()?;
+        let folder = path.parent().filter(|p| !p.as_os_str().is_empty());
+        let entries = std::fs::read_dir(folder.unwrap_or(Path::new("."))).ok()?;
+        entries.flatten().map(|entry| entry.path()).find(|other| {
+            let other_name = other.file_name().and_then(|n| n.to_str());
+            other_name.is_some_and(|n| n != name && n.eq_ignore_ascii_case(name)) && !other.is_dir()
+        })
     }
 }
 
