@@ -65,7 +65,9 @@ pub struct RunSummary {
     /// Largest distance, in scene units, by which a constraint lay outside its bound after a
     /// step.
     pub max_constraint_violation: f64,
-    /// The same as a share of the constraint's rest length (the bench's chains metric).
+    /// Largest violation as a share of its constraint's rest length (the bench's chains
+    /// metric; not necessarily the same constraint's; points placed together, with no rest
+    /// length, are left out).
     pub max_relative_constraint_violation: f64,
     pub finite: bool,
     pub quarantined: Vec<usize>,
@@ -109,8 +111,8 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
     }
     if interrupted {
         eprintln!(
-            "interrupted after {completed} of {} steps{}",
-            args.steps,
+            "interrupted after {completed} of {}{}",
+            counted(args.steps, "step", "steps"),
             if args.trajectory.is_some() {
                 "; the trajectory holds the steps completed"
             } else {
@@ -238,6 +240,7 @@ const BLOW_UP_LINES: usize = 10;
 impl RunSummary {
     fn start(scene: &str, steps: u64, world: &tumble::World, settings: tumble::Settings) -> Self {
         let energy_start = world.total_energy() + 0.0;
+        let worst = world.worst_constraint_violations();
         RunSummary {
             scene: scene.to_string(),
             steps,
@@ -260,8 +263,8 @@ impl RunSummary {
             energy_end: energy_start,
             energy_frozen: 0.0,
             max_penetration: 0.0,
-            max_constraint_violation: world.worst_constraint_violations().0,
-            max_relative_constraint_violation: world.worst_constraint_violations().1,
+            max_constraint_violation: worst.0,
+            max_relative_constraint_violation: worst.1,
             finite: world.all_finite(),
             quarantined: Vec::new(),
             asleep_at_end: 0,
@@ -372,10 +375,11 @@ fn print_summary(out: &mut impl Write, s: &RunSummary) -> std::io::Result<()> {
     print_state_at_end(out, s)
 }
 
-/// The worst constraint violation in scene units and as a share of its rest length.
+/// The worst constraint violation in scene units, and the worst share of a rest length (not
+/// necessarily the same constraint's).
 fn worst_violation(s: &RunSummary) -> String {
     format!(
-        "{} ({} of the rest length)",
+        "{}, worst share of a rest length {}",
         super::decimals(s.max_constraint_violation, 4),
         tumble::io::significant(s.max_relative_constraint_violation, 2)
     )

@@ -88,8 +88,8 @@ pub struct ViewArgs {
     /// Start with fixed bodies hidden, to see into a pile's bin (a panel toggle).
     #[arg(long)]
     pub no_fixed: bool,
-    /// Camera: YAW,PITCH[,DISTANCE[,X,Y,Z]] in degrees (pitch from -90 to 90) and scene units
-    /// (default: framed scene).
+    /// Camera: YAW,PITCH[,DISTANCE[,X,Y,Z]] in degrees (pitch from -90 to 90, steeper than 88.8
+    /// taken as 88.8) and scene units (default: framed scene).
     #[arg(long, value_name = "SPEC", allow_hyphen_values = true)]
     pub camera: Option<String>,
     /// Compare with other settings: a second world of the scene stepped in lockstep and drawn
@@ -131,9 +131,9 @@ pub struct RecordArgs {
     /// Frame size [default: 1280x720, 640x360 for .gif].
     #[arg(long, value_name = "WxH", value_parser = parse_size)]
     pub size: Option<(u32, u32)>,
-    /// Camera: YAW,PITCH[,DISTANCE[,X,Y,Z]] in degrees (pitch from -90 to 90) and scene units
-    /// (default: the scene framed from yaw 35, pitch 25), or `orbit`: the framed scene turning
-    /// once around its vertical axis over the recording.
+    /// Camera: YAW,PITCH[,DISTANCE[,X,Y,Z]] in degrees (pitch from -90 to 90, steeper than 88.8
+    /// taken as 88.8) and scene units (default: the scene framed from yaw 35, pitch 25), or
+    /// `orbit`: the framed scene turning once around its vertical axis over the recording.
     #[arg(long, value_name = "SPEC", allow_hyphen_values = true)]
     pub camera: Option<String>,
     /// Compare with other settings: a second world of the scene stepped in lockstep and drawn
@@ -254,15 +254,22 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
 /// Warnings on frames a recording will show otherwise than a user may expect.
 #[cfg(feature = "viewer")]
 fn warn_of_frames(kind: tumble::viewer::OutputKind, fps: f64, dts: &[f64]) {
-    let coarsest = dts.iter().copied().fold(0.0, f64::max);
+    // The coarsest world's step: the first world's, or the compared one's.
+    let names = ["--dt", "--compare's --dt"];
+    let (name, coarsest) = names
+        .into_iter()
+        .zip(dts.iter().copied())
+        .fold(("--dt", 0.0), |a, b| if b.1 > a.1 { b } else { a });
     let repeated = tumble::viewer::record::repeated_frame_share(fps, coarsest);
-    if repeated > 1e-9 {
+    // From half a percent, which the message's whole percent can show.
+    if repeated >= 0.005 {
+        // Rounded down, so that the step suggested is short enough.
+        let enough = (1e4 / fps).floor() / 1e4;
         eprintln!(
-            "warning: --fps {fps} is more frames than steps a simulated second (--dt {coarsest}): \
-             {:.0} % of the frames repeat the one before; a --dt of at most {:.4} gives each \
-             frame a step of its own",
+            "warning: --fps {fps} is more frames than steps a simulated second ({name} \
+             {coarsest}): {:.0} % of the frames repeat the one before; a --dt of at most \
+             {enough:.4} gives each frame a step of its own",
             100.0 * repeated,
-            1.0 / fps
         );
     }
     // GIF delays are whole centiseconds, and players show those under 2 at 10 (browsers, most

@@ -82,13 +82,13 @@ impl DistanceConstraint {
         self.share_of_rest_length(self.violation(bodies))
     }
 
-    /// A length as a share of the rest length (itself for points placed together, which have
-    /// no length to share).
+    /// A length as a share of the rest length; 0 for points placed together, which have no
+    /// length to share (their violations are lengths only).
     pub fn share_of_rest_length(&self, length: f64) -> f64 {
         if self.rest_length > 0.0 {
             length / self.rest_length
         } else {
-            length
+            0.0
         }
     }
 

@@ -289,7 +289,8 @@ impl World {
     }
 
     /// The largest distance by which any constraint lies outside its bound, and the largest
-    /// violation as a share of its constraint's rest length, in one pass.
+    /// violation as a share of its constraint's rest length (not necessarily the same
+    /// constraint's; points placed together have no share), in one pass.
     pub fn worst_constraint_violations(&self) -> (f64, f64) {
         self.constraints
             .iter()

@@ -529,10 +529,7 @@ pub fn check_rates(
         let steps = seconds / dt;
         // (Not three hundred digits for --seconds 1e300 or --dt 5e-324, nor a flag the user
         // did not give.)
-        let short = |x: f64| match x.abs() {
-            a if a != 0.0 && !(1e-4..1e9).contains(&a) => format!("{x:e}"),
-            _ => x.to_string(),
-        };
+        let short = |x: f64| crate::io::significant(x, 6);
         anyhow::ensure!(
             steps <= MAX_RECORD_STEPS,
             "recording {} s takes {steps:.1e} steps of {} s, more than \
