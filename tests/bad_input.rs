@@ -894,9 +894,7 @@ fn folders_bytes_and_endless_files() {
 /// What a hand edit or another system's editor leaves, named as such: a count one short of
 /// its records (the record past it read as a section keyword, a face or an extra record), a
 /// constraint file without its count line, UTF-16 text and Latin-1 bytes outside a comment.
-/// Latin-1 bytes inside a comment, padding at the end, an empty constraint file, a Windows path
-/// and a mesh vertex no tetrahedron uses are taken (the last named in a warning; far away, where
-/// it was refused as "zero volume" before, it is named as what leaves no hull to build).
+/// Latin-1 bytes inside a comment, padding at the end and an empty constraint file are taken.
 #[test]
 fn hand_edits_and_foreign_encodings_are_named() {
     let dir = Dir::new("hand-edits");
@@ -980,6 +978,14 @@ fn hand_edits_and_foreign_encodings_are_named() {
     let faceless = "OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n";
     let error = load_off(&dir, faceless, 1.0).unwrap_err();
     assert!(error.message.contains("end of file") && !error.message.contains("vertex count"));
+}
+
+/// A scene written on Windows (a backslash in its mesh path) loads, and a mesh vertex no
+/// tetrahedron uses is named in a warning; far away, where it was refused as "zero volume"
+/// before, it is named as what leaves no hull to build.
+#[test]
+fn windows_paths_load_and_stray_vertices_are_named() {
+    let dir = Dir::new("strays");
     std::fs::create_dir_all(dir.0.join("meshes")).unwrap();
     dir.write("meshes/w.mesh", TET);
     let world = load(&dir, "1\nmeshes\\w.mesh 1 0 0 5 0 1 0 0 0\n", None).unwrap();
