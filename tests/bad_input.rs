@@ -136,6 +136,9 @@ fn missing_files() {
         None,
         "not a built-in scene",
     );
+    let empty = tumble::scene::load("", &ConstraintsChoice::Auto, Settings::default());
+    let shown = empty.map(|_| ()).unwrap_err().to_string();
+    assert!(shown.starts_with("'': no such file"), "{shown}");
     for name in ["stack-0", "pile-x", "scatter-1000001", "rope-"] {
         expect(
             tumble::scene::load(name, &ConstraintsChoice::Auto, Settings::default())
