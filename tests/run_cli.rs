@@ -6,6 +6,14 @@ fn tumble() -> Command {
     Command::new(env!("CARGO_BIN_EXE_tumble"))
 }
 
+/// A fresh, empty folder for one test's files.
+fn scratch(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("tumble-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
 /// Runs `command` and returns its output, failing with its stderr if it did not succeed.
 fn succeeded(command: &mut Command) -> std::process::Output {
     let out = command.output().unwrap();
@@ -179,9 +187,7 @@ fn trajectory_survives_ctrl_c() {
 #[test]
 fn a_later_signal_stops_at_once() {
     use std::os::unix::process::ExitStatusExt;
-    let dir = std::env::temp_dir().join(format!("tumble-run-later-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch("run-later");
     let box_mesh = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/box.mesh");
     std::fs::copy(box_mesh, dir.join("box.mesh")).unwrap();
     let scene = dir.join("c-scene.txt");
@@ -221,9 +227,7 @@ fn a_later_signal_stops_at_once() {
 }
 
 fn trajectory_survives(signal: libc::c_int, status: i32) {
-    let dir = std::env::temp_dir().join(format!("tumble-run-sig{signal}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch(&format!("run-sig{signal}"));
     let out = dir.join("trajectory.csv");
     let child = tumble()
         .args(["run", "pile-500", "--steps", "100000000", "--trajectory"])
@@ -272,8 +276,7 @@ fn trajectory_survives(signal: libc::c_int, status: i32) {
 /// in the JSON under scenario -> combination -> dt -> metrics.
 #[test]
 fn bench_accuracy_json_beside_the_csv_matches_it() {
-    let dir = std::env::temp_dir().join(format!("tumble-bench-json-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
+    let dir = scratch("bench-json");
     succeeded(
         tumble()
             .args([
@@ -336,7 +339,7 @@ fn bench_accuracy_json_beside_the_csv_matches_it() {
 /// `bench scale --quick` shortens what is not given; sizes and steps given are run as given.
 #[test]
 fn bench_scale_quick_keeps_what_is_named() {
-    let dir = std::env::temp_dir().join(format!("tumble-scale-quick-{}", std::process::id()));
+    let dir = scratch("scale-quick");
     let out = succeeded(
         tumble()
             .args([
@@ -365,8 +368,7 @@ fn bench_scale_quick_keeps_what_is_named() {
 /// file's.
 #[test]
 fn gravity_is_a_flag() {
-    let dir = std::env::temp_dir().join(format!("tumble-gravity-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch("gravity");
     let path = dir.join("sideways.csv");
     let sideways = [
         "run",
@@ -412,9 +414,7 @@ fn gravity_is_a_flag() {
 /// computed, `9.999999999999999e-5`), the legend in its own column right of the plot.
 #[test]
 fn bench_replot_draws_the_committed_runs_plots_with_readable_ticks() {
-    let dir = std::env::temp_dir().join(format!("tumble-replot-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = scratch("replot");
     let bench = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/bench");
     for name in ["accuracy.json", "scale.json"] {
         std::fs::copy(bench.join(name), dir.join(name)).unwrap();
