@@ -1410,12 +1410,7 @@ mod tests {
                 let drift = |body: &RigidBody| {
                     let mut body = body.clone();
                     for _ in 0..1000 {
-                        integrate_pose(
-                            &mut body,
-                            RotationIntegrator::AngularMomentum,
-                            h / 1e3,
-                            false,
-                        );
+                        integrate_pose(&mut body, RotationIntegrator::AngularMomentum, h / 1e3);
                     }
                     body
                 };

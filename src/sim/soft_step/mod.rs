@@ -1112,7 +1112,7 @@ fn integrate_free(
             if k > 0 {
                 body.linear_velocity += kicks.full;
             }
-            integrate_pose(body, integrator, h, false);
+            integrate_pose(body, integrator, h);
         }
         body.linear_velocity += kicks.half;
     });
@@ -1151,7 +1151,7 @@ impl Workspace {
             let (p0, q0) = start[i];
             body.linear_velocity = sb.linear_velocity;
             body.angular_velocity = sb.angular_velocity;
-            integrate_pose(body, integrator, h, false);
+            integrate_pose(body, integrator, h);
             // The angular-momentum integrator turns the angular velocity with the body.
             sb.angular_velocity = body.angular_velocity;
             // (Equal principal moments look the same from every orientation.)
