@@ -277,7 +277,7 @@ fn trajectory_survives(signal: libc::c_int, status: i32) {
 #[test]
 fn bench_accuracy_json_beside_the_csv_matches_it() {
     let dir = scratch("bench-json");
-    succeeded(
+    let out = succeeded(
         tumble()
             .args([
                 "bench",
@@ -332,6 +332,23 @@ fn bench_accuracy_json_beside_the_csv_matches_it() {
             .as_f64()
             .unwrap();
         assert!(row.contains(&format!("{value:.3e}")), "{row}");
+    }
+    // The table file holds the table; what was written is said on standard output, every
+    // file by a name that exists.
+    assert!(!table.contains("wrote"), "{table}");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let (_, written) = stdout.split_once("\nwrote ").expect(&stdout);
+    let plots: Vec<&str> = written.lines().skip(1).map(str::trim).collect();
+    assert!(written.starts_with(&format!("{}", dir.join("accuracy.csv").display())));
+    let count = format!("and {} plot", plots.len());
+    assert!(written.contains(&count), "{written}");
+    assert!(!plots.is_empty(), "{written}");
+    for file in plots
+        .iter()
+        .copied()
+        .chain(["accuracy.json", "accuracy.txt"])
+    {
+        assert!(dir.join(file).is_file(), "{file} in {written}");
     }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -182,33 +182,41 @@ pub fn scale(args: &ScaleArgs) -> anyhow::Result<()> {
         );
     }
     let report = tumble::bench::scale::run(&config, &ProgressBar::default())?;
-    print_or_table(args.json, &report, &report.csv, |out| {
+    let files = (report.csv.as_path(), &report.plots[..]);
+    print_or_table(args.json, &report, files, |out| {
         writeln!(out, "machine: {}", report.machine.describe())?;
         print_scale(out, &report)
     })
 }
 
-/// With `--json` prints `value` as JSON, else the `table`; either way the JSON and the table
-/// are written beside the CSV (`beside` with the extensions `.json` and `.txt`), so a folder's
-/// JSON, CSV, table and plots are always from the same run.
+/// With `--json` prints `value` as JSON, else the `table` and then the files written; either way
+/// the JSON and the table are written beside the CSV (`csv` with the extensions `.json` and
+/// `.txt`), so a folder's JSON, CSV, table and `plots` are always from the same run. The table
+/// file holds the table only (it ended with a line saying where the CSV went).
 fn print_or_table<T: Serialize>(
     json: bool,
     value: &T,
-    beside: &Path,
+    (csv, plots): (&Path, &[PathBuf]),
     table: impl FnOnce(&mut String) -> std::fmt::Result,
 ) -> anyhow::Result<()> {
     let text = serde_json::to_string_pretty(value)?;
-    let path = beside.with_extension("json");
+    let path = csv.with_extension("json");
     tumble::io::write_file_atomically(&path, |w| w.write_all(text.as_bytes()))?;
     let mut lines = String::new();
     table(&mut lines)?;
-    let txt = beside.with_extension("txt");
+    let txt = csv.with_extension("txt");
     tumble::io::write_file_atomically(&txt, |w| w.write_all(lines.as_bytes()))?;
     if json {
         println!("{text}");
     } else {
         print!("{lines}");
-        println!("wrote {} and {}", path.display(), txt.display());
+        let (csv, path, txt) = (csv.display(), path.display(), txt.display());
+        let n = plots.len();
+        let plural = if n == 1 { "" } else { "s" };
+        println!("\nwrote {csv}, {path} and {txt}, and {n} plot{plural} beside them:");
+        for plot in plots {
+            println!("  {}", plot.display());
+        }
     }
     Ok(())
 }
@@ -323,17 +331,6 @@ fn print_scale(out: &mut String, report: &ScaleReport) -> std::fmt::Result {
     )?;
     writeln!(out, "accurate variants: {}", report.accurate_settings)?;
     writeln!(out, "{}", report.rapier)?;
-    writeln!(
-        out,
-        "wrote {} and {}",
-        report.csv.display(),
-        report
-            .plots
-            .iter()
-            .map(|p| p.display().to_string())
-            .collect::<Vec<_>>()
-            .join(", ")
-    )?;
     Ok(())
 }
 
@@ -346,7 +343,8 @@ pub fn accuracy(args: &AccuracyArgs) -> anyhow::Result<()> {
         out: args.out.clone(),
     };
     let report = tumble::bench::accuracy::run(&config, &ProgressBar::default())?;
-    print_or_table(args.json, &report.results, &report.csv, |out| {
+    let files = (report.csv.as_path(), &report.plots[..]);
+    print_or_table(args.json, &report.results, files, |out| {
         writeln!(out, "machine: {}", report.machine.describe())?;
         print_accuracy(out, &report)
     })
@@ -384,12 +382,6 @@ fn print_accuracy(out: &mut String, report: &AccuracyReport) -> std::fmt::Result
             writeln!(out)?;
         }
     }
-    writeln!(
-        out,
-        "\nwrote {} and {} plots beside it",
-        report.csv.display(),
-        report.plots.len(),
-    )?;
     Ok(())
 }
 
