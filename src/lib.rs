@@ -6,10 +6,14 @@
 //! - [`sim`]: the headless core (world, bodies, shapes, the stages of a step, settings, stats);
 //! - [`io`]: file formats, writers, files that appear whole or not at all;
 //! - [`scene`]: building worlds from files, built-in and generated scenes, tumble's meshes;
-//! - [`bench`]: accuracy scenarios and the benchmarks (drivers and plots with feature `bench`);
+//! - [`mod@bench`]: accuracy scenarios and the benchmarks (drivers and plots with feature `bench`);
 //! - `viewer` (feature `viewer`): the wgpu/winit/egui window and the recorder.
 //!
 //! The command line lives in the binary (`src/main.rs`, `src/cli/`).
+//!
+//! These docs are for those who work on tumble, and link to private items: build them with
+//! `cargo doc --no-deps --document-private-items`.
+#![allow(rustdoc::private_intra_doc_links)]
 
 pub mod bench;
 pub mod io;

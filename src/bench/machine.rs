@@ -48,7 +48,7 @@ fn model_name(cpuinfo: &str) -> Option<String> {
 }
 
 /// The caches listed under `dir` (`index0`, `index1`, ... each with `level`, `type` and
-/// `size`), as "L<level><d|i|> <size>", by level then name.
+/// `size`), as `"L<level><d|i|> <size>"`, by level then name.
 fn caches_in(dir: &Path) -> Vec<String> {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return Vec::new();

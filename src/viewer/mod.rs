@@ -39,7 +39,7 @@
 //! - [`panel`]: the egui side panel and the overlay over the view.
 //!
 //! Recording (`tumble record`):
-//! - [`record`]: MP4 (ffmpeg), GIF and PNG output, and the offscreen recording loop.
+//! - [`mod@record`]: MP4 (ffmpeg), GIF and PNG output, and the offscreen recording loop.
 
 pub mod app;
 pub mod camera;

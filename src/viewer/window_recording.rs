@@ -1,6 +1,6 @@
 //! Recording started from the window's panel. A frame of the 3D view is taken after the step that
 //! reaches each frame's simulated time (one per 1/fps of simulated time), so the video plays at
-//! simulated speed whatever the window's frame rate. The encoding is [`super::record`]'s.
+//! simulated speed whatever the window's frame rate. The encoding is [`mod@super::record`]'s.
 
 use super::gpu::Image;
 use super::labels::{Label, LabelPainter};
