@@ -273,7 +273,8 @@ fn trajectory_survives(signal: libc::c_int, status: i32) {
 }
 
 /// `bench accuracy` writes its JSON beside its CSV, from the same run: every CSV row's value is
-/// in the JSON under scenario -> combination -> dt -> metrics.
+/// in the JSON under scenario -> combination -> dt -> metrics. The table file holds the table,
+/// and standard output names every file written.
 #[test]
 fn bench_accuracy_json_beside_the_csv_matches_it() {
     let dir = scratch("bench-json");
@@ -333,23 +334,25 @@ fn bench_accuracy_json_beside_the_csv_matches_it() {
             .unwrap();
         assert!(row.contains(&format!("{value:.3e}")), "{row}");
     }
-    // The table file holds the table; what was written is said on standard output, every
-    // file by a name that exists.
+    // The table file holds the table; standard output names the files written, one line for
+    // the CSV, JSON and table, then one a plot, each a file that exists.
     assert!(!table.contains("wrote"), "{table}");
     let stdout = String::from_utf8_lossy(&out.stdout);
-    let (_, written) = stdout.split_once("\nwrote ").expect(&stdout);
-    let plots: Vec<&str> = written.lines().skip(1).map(str::trim).collect();
-    assert!(written.starts_with(&format!("{}", dir.join("accuracy.csv").display())));
-    let count = format!("and {} plot", plots.len());
-    assert!(written.contains(&count), "{written}");
-    assert!(!plots.is_empty(), "{written}");
-    for file in plots
-        .iter()
-        .copied()
-        .chain(["accuracy.json", "accuracy.txt"])
-    {
-        assert!(dir.join(file).is_file(), "{file} in {written}");
-    }
+    let written: Vec<&str> = stdout
+        .lines()
+        .filter_map(|l| l.strip_prefix("wrote "))
+        .collect();
+    let name = |file: &str| dir.join(file).display().to_string();
+    let beside = format!(
+        "{}, {} and {}",
+        name("accuracy.csv"),
+        name("accuracy.json"),
+        name("accuracy.txt")
+    );
+    assert_eq!(written.first(), Some(&beside.as_str()), "{stdout}");
+    assert_eq!(written.len(), 2, "one plot for one scenario: {stdout}");
+    assert_eq!(written[1], name("accuracy-free_fall.svg"), "{stdout}");
+    assert!(dir.join("accuracy-free_fall.svg").is_file());
     let _ = std::fs::remove_dir_all(&dir);
 }
 

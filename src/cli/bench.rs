@@ -182,26 +182,27 @@ pub fn scale(args: &ScaleArgs) -> anyhow::Result<()> {
         );
     }
     let report = tumble::bench::scale::run(&config, &ProgressBar::default())?;
-    let files = (report.csv.as_path(), &report.plots[..]);
-    print_or_table(args.json, &report, files, |out| {
+    print_or_table(args.json, &report, &report.csv, &report.plots, |out| {
         writeln!(out, "machine: {}", report.machine.describe())?;
         print_scale(out, &report)
     })
 }
 
-/// With `--json` prints `value` as JSON, else the `table` and then the files written; either way
-/// the JSON and the table are written beside the CSV (`csv` with the extensions `.json` and
+/// With `--json` prints `value` as JSON, else the `table` and then the files written (one
+/// `wrote` line for the CSV, JSON and table, then one a plot, as `bench replot` says them);
+/// either way the JSON and the table are written beside the `csv` (its name with `.json` and
 /// `.txt`), so a folder's JSON, CSV, table and `plots` are always from the same run. The table
-/// file holds the table only (it ended with a line saying where the CSV went).
+/// file holds the table only.
 fn print_or_table<T: Serialize>(
     json: bool,
     value: &T,
-    (csv, plots): (&Path, &[PathBuf]),
+    csv: &Path,
+    plots: &[PathBuf],
     table: impl FnOnce(&mut String) -> std::fmt::Result,
 ) -> anyhow::Result<()> {
     let text = serde_json::to_string_pretty(value)?;
-    let path = csv.with_extension("json");
-    tumble::io::write_file_atomically(&path, |w| w.write_all(text.as_bytes()))?;
+    let json_path = csv.with_extension("json");
+    tumble::io::write_file_atomically(&json_path, |w| w.write_all(text.as_bytes()))?;
     let mut lines = String::new();
     table(&mut lines)?;
     let txt = csv.with_extension("txt");
@@ -210,12 +211,10 @@ fn print_or_table<T: Serialize>(
         println!("{text}");
     } else {
         print!("{lines}");
-        let (csv, path, txt) = (csv.display(), path.display(), txt.display());
-        let n = plots.len();
-        let plural = if n == 1 { "" } else { "s" };
-        println!("\nwrote {csv}, {path} and {txt}, and {n} plot{plural} beside them:");
+        let (csv, json_path, txt) = (csv.display(), json_path.display(), txt.display());
+        println!("\nwrote {csv}, {json_path} and {txt}");
         for plot in plots {
-            println!("  {}", plot.display());
+            println!("wrote {}", plot.display());
         }
     }
     Ok(())
@@ -343,11 +342,16 @@ pub fn accuracy(args: &AccuracyArgs) -> anyhow::Result<()> {
         out: args.out.clone(),
     };
     let report = tumble::bench::accuracy::run(&config, &ProgressBar::default())?;
-    let files = (report.csv.as_path(), &report.plots[..]);
-    print_or_table(args.json, &report.results, files, |out| {
-        writeln!(out, "machine: {}", report.machine.describe())?;
-        print_accuracy(out, &report)
-    })
+    print_or_table(
+        args.json,
+        &report.results,
+        &report.csv,
+        &report.plots,
+        |out| {
+            writeln!(out, "machine: {}", report.machine.describe())?;
+            print_accuracy(out, &report)
+        },
+    )
 }
 
 fn print_accuracy(out: &mut String, report: &AccuracyReport) -> std::fmt::Result {
