@@ -227,13 +227,13 @@ const SERIES_HALF_ANGLE: f64 = 0.05;
 
 /// [`rotate_by`] for every turn but the coursework solver's (its integrator with the skeleton's
 /// cut-off keeps `rotate_by`'s arithmetic bit for bit: [`integrate_coursework_batch`]): the soft
-/// step's, the opt-in integrators' and the
-/// joint projection's. Below a half-angle `t` of [`SERIES_HALF_ANGLE`] (a turn of 0.1 rad
-/// in the step: 10 rad/s at a substep of 0.01 s) the exponential's `sin(t) / t` and `cos(t)`
-/// come from their Taylor series to `t^8` (the first term left out is under 3e-20, far below a
-/// rounding) and the product back to unit length by one Newton step for `1 / |q|` (`|q|^2` is
-/// 1 to a few roundings, the step's error their square): no square root, division or sine,
-/// which took most of the angular-momentum integrator's time (two turns a body a substep).
+/// step's, the opt-in integrators' and the joint projection's. Below a half-angle `t` of
+/// [`SERIES_HALF_ANGLE`] (a turn of 0.1 rad in the step: 10 rad/s at a substep of 0.01 s) the
+/// exponential's `sin(t) / t` and `cos(t)` come from their Taylor series to `t^8` (the first
+/// term left out is under 3e-20, far below a rounding) and the product back to unit length by
+/// one Newton step for `1 / |q|` (`|q|^2` is 1 to a few roundings, the step's error their
+/// square): no square root, division or sine, which took most of the angular-momentum
+/// integrator's time (two turns a body a substep).
 #[inline]
 pub fn turn_by(q: DQuat, angular_velocity: DVec3, dt: f64) -> DQuat {
     let half = 0.5 * dt * angular_velocity;
