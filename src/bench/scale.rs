@@ -156,6 +156,10 @@ pub const POSE_UPDATE: &str = "pose_update";
 pub struct Measurement {
     /// Median over the first `--steps` measured steps (a pile is watched on after them).
     pub median_ms_per_step: f64,
+    /// Mean over the same steps: their run time a step. Where a scene's steps are of very
+    /// different lengths (free fall, then landing) the median can sit far from it (docs/scale.md,
+    /// "Stop 71").
+    pub mean_ms_per_step: f64,
     /// Median over the last fifth of the measured steps, where sleeping shows.
     pub late_median_ms_per_step: f64,
     /// Mean ms per step of each stage (by [`Stage`] name, plus [`POSE_UPDATE`]).
@@ -183,6 +187,7 @@ impl Measurement {
         let typical_steps = typical_steps.min(step_seconds.len());
         Measurement {
             median_ms_per_step: median_ms(&step_seconds[..typical_steps]),
+            mean_ms_per_step: mean_ms(&step_seconds[..typical_steps]),
             late_median_ms_per_step: late_median_ms(&step_seconds),
             mean_stage_ms: BTreeMap::new(),
             constraint_visits_per_step: 0.0,
@@ -225,6 +230,7 @@ impl Measurement {
         }
         first.typical_steps = first.typical_steps.min(shared);
         first.median_ms_per_step = median_ms(first.typical());
+        first.mean_ms_per_step = mean_ms(first.typical());
         first.late_median_ms_per_step = late_median_ms(&first.step_seconds);
         first.steps_measured = shared;
         first.peak_mib = runs.iter().map(|m| m.peak_mib).fold(0.0, f64::max);
@@ -334,6 +340,11 @@ fn median_ms(times: &[f64]) -> f64 {
     let mut sorted = times.to_vec();
     sorted.sort_by(f64::total_cmp);
     1000.0 * sorted.get(sorted.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// The mean of `times` (seconds) in ms; 0 for none.
+fn mean_ms(times: &[f64]) -> f64 {
+    1000.0 * times.iter().sum::<f64>() / times.len().max(1) as f64
 }
 
 /// The median over the last fifth of `times`.
@@ -630,7 +641,8 @@ fn growth(
     out
 }
 
-/// The CSV columns after `variant`: the median, each stage's mean ms, then counts.
+/// The CSV columns after `variant`: the median, mean and late median, each stage's mean ms,
+/// then counts.
 fn csv_text(results: &BTreeMap<String, BTreeMap<String, Measurement>>) -> String {
     let stage_names: Vec<&str> = Stage::ALL
         .iter()
@@ -638,7 +650,7 @@ fn csv_text(results: &BTreeMap<String, BTreeMap<String, Measurement>>) -> String
         .chain([POSE_UPDATE])
         .collect();
     let mut csv = format!(
-        "scene,n,variant,median_ms_per_step,late_median_ms_per_step,{},visits_per_step,contacts_per_step,peak_mib,steps_measured,asleep_at_end,runs\n",
+        "scene,n,variant,median_ms_per_step,mean_ms_per_step,late_median_ms_per_step,{},visits_per_step,contacts_per_step,peak_mib,steps_measured,asleep_at_end,runs\n",
         stage_names
             .iter()
             .map(|s| format!("{s}_ms"))
@@ -662,8 +674,9 @@ fn csv_text(results: &BTreeMap<String, BTreeMap<String, Measurement>>) -> String
                 false => String::new(),
             };
             csv.push_str(&format!(
-                "{scene},{n},{v},{:.5},{:.5},{},{},{},{:.2},{},{},{}\n",
+                "{scene},{n},{v},{:.5},{:.5},{:.5},{},{},{},{:.2},{},{},{}\n",
                 m.median_ms_per_step,
+                m.mean_ms_per_step,
                 m.late_median_ms_per_step,
                 stages.join(","),
                 counted(m.constraint_visits_per_step),
@@ -793,6 +806,26 @@ mod tests {
         assert_eq!(theirs[column("median_ms_per_step")], "3.00000");
     }
 
+    /// Steps of two lengths (free fall, then landing): the median is one of them, the mean the
+    /// run time a step over the typical window, as computed by hand. The CSV carries both.
+    #[test]
+    fn the_mean_is_the_run_time_a_step_where_the_median_picks_a_side() {
+        let steps = [vec![0.001; 3], vec![0.009; 2], vec![0.5; 4]].concat();
+        let m = Measurement::from_times(steps, 5);
+        assert_eq!(m.median_ms_per_step, 1.0);
+        assert!((m.mean_ms_per_step - (3.0 * 1.0 + 2.0 * 9.0) / 5.0).abs() < 1e-12);
+        let text = csv_text(&BTreeMap::from([(
+            "scatter-10".to_string(),
+            BTreeMap::from([("tumble_1_thread".to_string(), m)]),
+        )]));
+        let (header, row) = (text.lines().next().unwrap(), text.lines().nth(1).unwrap());
+        let at = header
+            .split(',')
+            .position(|h| h == "mean_ms_per_step")
+            .unwrap();
+        assert_eq!(row.split(',').nth(at), Some("4.20000"));
+    }
+
     /// A pile watched on past its typical window: its median and the ratios cover the first
     /// steps only (the landing), its late median the last fifth of all (at rest).
     #[test]
@@ -801,6 +834,7 @@ mod tests {
         let resting = vec![1e-6; 10];
         let pile = Measurement::from_times([landing.clone(), resting].concat(), 5);
         assert_eq!(pile.median_ms_per_step, 10.0);
+        assert!((pile.mean_ms_per_step - 10.0).abs() < 1e-12);
         assert_eq!(pile.late_median_ms_per_step, 0.001);
         assert_eq!(pile.steps_measured, 15);
         let other = Measurement::from_times(vec![0.005; 15], 5);
@@ -827,6 +861,7 @@ mod tests {
             vec![0.002, 0.002, 0.002, 0.005, 0.002]
         );
         assert!((combined.median_ms_per_step - 2.0).abs() < 1e-12);
+        assert!((combined.mean_ms_per_step - 2.6).abs() < 1e-12);
         assert!((combined.late_median_ms_per_step - 2.0).abs() < 1e-12);
         assert!((combined.mean_stage_ms["solve"] - 2.1).abs() < 1e-12);
         assert_eq!(
