@@ -213,11 +213,16 @@ fn print_or_table<T: Serialize>(
         print!("{lines}");
         let (csv, json_path, txt) = (csv.display(), json_path.display(), txt.display());
         println!("\nwrote {csv}, {json_path} and {txt}");
-        for plot in plots {
-            println!("wrote {}", plot.display());
-        }
+        print_written(plots);
     }
     Ok(())
+}
+
+/// One `wrote` line a file: the benches' plots and `bench replot`'s.
+fn print_written(files: &[PathBuf]) {
+    for file in files {
+        println!("wrote {}", file.display());
+    }
 }
 
 /// One scene's variant as a row of the scale table.
@@ -429,9 +434,7 @@ pub fn replot(args: &ReplotArgs) -> anyhow::Result<()> {
         "{}: no accuracy.json or scale.json to plot",
         args.folder.display()
     );
-    for plot in &plots {
-        println!("wrote {}", plot.display());
-    }
+    print_written(&plots);
     anyhow::ensure!(failures.is_empty(), "{}", failures.join("\n"));
     Ok(())
 }
