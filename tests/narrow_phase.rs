@@ -1,5 +1,6 @@
 //! The separating-axis fallback of the narrow phase against hand-computed contacts and against
-//! parry's GJK/EPA on random overlapping hulls.
+//! parry's GJK/EPA on random overlapping hulls; the oriented-box early out against parry's box
+//! distance; the hull contact against parry's own around touching.
 mod common;
 
 use common::*;
@@ -208,4 +209,81 @@ fn a_patch_of_boxes_exactly_touching_has_no_nan() {
     assert!(world.all_finite() && world.bodies.iter().all(|b| !b.quarantined));
     let (low, high) = (world.bodies[0].position, world.bodies[1].position);
     assert!((high.y - low.y - 6.0).abs() < 0.3, "{low} {high}");
+}
+
+/// The coursework's contact between two hulls is parry's own (`parry3d::query::contact` at
+/// prediction 0), bit for bit, on random pairs of every built-in shape around touching: deep,
+/// grazing, a hair apart and clearly apart. Those apart along the line of their centres are
+/// settled before GJK runs (a gap along any axis bounds the distance from below), and must still
+/// come out as parry's. EPA's failures (the separating-axis fallback) are left out.
+#[test]
+fn hull_contact_is_parrys_contact_around_touching() {
+    use parry3d_f64::math::Pose;
+    use parry3d_f64::query::{self, ClosestPoints};
+    use tumble::sim::narrow_phase::gap_along;
+    let shapes: Vec<tumble::Shape> = assets::all_meshes().iter().map(|(_, m)| shape(m)).collect();
+    let mut rng = Rng::new(47);
+    let (mut touching, mut apart_on_centres, mut apart_otherwise, mut hairs) = (0, 0, 0, 0);
+    for k in 0..40_000 {
+        let n = shapes.len() as u64;
+        let (i, j) = ((rng.next_u64() % n) as usize, (rng.next_u64() % n) as usize);
+        let (s1, s2) = (&shapes[i], &shapes[j]);
+        let a = RigidBody::on_shape(s1, 0, 1.0, false, DVec3::ZERO, rng.tilt(3.2));
+        let direction = DVec3::new(
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+        );
+        let reach = s1.local_box_half_extents.length() + s2.local_box_half_extents.length();
+        let mut b = RigidBody::on_shape(s2, 0, 1.0, false, DVec3::ZERO, rng.tilt(3.2));
+        b.position = direction.normalize_or(DVec3::X) * rng.range(0.1, 1.1) * reach;
+        let pose1 = Pose::from_parts(a.position, a.orientation);
+        let pose_of = |b: &RigidBody| Pose::from_parts(b.position, b.orientation);
+        // Every third pair is slid along the line of its closest points until it is 1e-9 to
+        // 1e-5 from touching, on either side.
+        if k % 3 == 0
+            && let ClosestPoints::WithinMargin(p1, p2) =
+                query::closest_points(&pose1, &s1.hull, &pose_of(&b), &s2.hull, f64::MAX).unwrap()
+        {
+            let hair = 10f64.powf(rng.range(-14.0, -5.0)) * if k % 2 == 0 { 1.0 } else { -1.0 };
+            let gap = p2 - p1;
+            b.position -= gap.normalize_or_zero() * (gap.length() - hair);
+        }
+        // Every third pair, one after those, is slid along the line of centres until its gap
+        // along that line is such a hair, on either side.
+        if k % 3 == 1 {
+            let hair = 10f64.powf(rng.range(-14.0, -5.0)) * if k % 2 == 0 { 1.0 } else { -1.0 };
+            let pos12 = pose1.inv_mul(&pose_of(&b));
+            let centres = pos12.translation.normalize_or(DVec3::X);
+            let gap = gap_along(centres, &pos12, s1, s2);
+            b.position += a.orientation * centres * (hair - gap);
+        }
+        let pose2 = pose_of(&b);
+        let parry = query::contact(&pose1, &s1.hull, &pose2, &s2.hull, 0.0).unwrap();
+        let ours = body_contact(&a, s1, &b, s2);
+        if ours.fallback {
+            continue;
+        }
+        let expected = parry
+            .filter(|c| c.dist <= 0.0)
+            .map(|c| (-c.dist, c.normal1, c.point2));
+        let found = ours.contact.map(|c| (c.depth, c.normal, c.point2));
+        assert_eq!(found, expected, "pair {k}: shapes {i} and {j}");
+        let pos12 = pose1.inv_mul(&pose2);
+        let centres = pos12.translation.normalize_or(DVec3::X);
+        match expected {
+            Some(_) => touching += 1,
+            None if gap_along(centres, &pos12, s1, s2) > 0.0 => {
+                apart_on_centres += 1;
+                hairs += (gap_along(centres, &pos12, s1, s2) < 1e-5) as usize;
+            }
+            None => apart_otherwise += 1,
+        }
+    }
+    eprintln!(
+        "{touching} touching, {apart_on_centres} apart on their centres' line ({hairs} by less \
+         than 1e-5), {apart_otherwise} apart otherwise"
+    );
+    assert!(touching > 5000 && apart_on_centres > 5000 && apart_otherwise > 2000);
+    assert!(hairs > 2000, "{hairs}");
 }

@@ -5,6 +5,7 @@ use super::body::RigidBody;
 use super::shape::Shape;
 use glam::DVec3;
 use parry3d_f64::math::Pose;
+use parry3d_f64::shape::SupportMap;
 
 /// A penetrating contact between body 1 and body 2.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -107,6 +108,11 @@ fn hull_contact(pose1: &Pose, shape1: &Shape, pose2: &Pose, shape2: &Shape) -> H
     let (g1, g2) = (&shape1.hull, &shape2.hull);
     let pos12 = pose1.inv_mul(pose2);
     let dir = pos12.translation.try_normalize().unwrap_or(Vector::X);
+    // GJK's first direction settles most pairs apart with one support point of each: at
+    // scatter-10000, 71 % of the pairs whose boxes overlap and hulls do not.
+    if apart_for_sure(dir, &pos12, shape1, shape2) {
+        return HullContact::Apart;
+    }
     let mut simplex = VoronoiSimplex::new();
     simplex.reset(CsoPoint::from_shapes(&pos12, g1, g2, dir));
     let (point1, point2_1, normal1) =
@@ -125,6 +131,30 @@ fn hull_contact(pose1: &Pose, shape1: &Shape, pose2: &Pose, shape2: &Shape) -> H
     contact.transform_by_mut(pose1, pose2);
     HullContact::Touching(contact)
 }
+
+/// The gap between two hulls along the unit `axis` (in body 1's frame; `pos12` takes body 2's
+/// frame to body 1's): how far body 2's nearest point along the axis lies beyond body 1's
+/// farthest, from one support point of each. Any axis bounds the distance from below, so a
+/// positive gap proves the hulls apart by at least that much.
+pub fn gap_along(axis: DVec3, pos12: &Pose, shape1: &Shape, shape2: &Shape) -> f64 {
+    let reach1 = shape1.hull.local_support_point(axis).dot(axis);
+    let toward1 = pos12.rotation.inverse() * -axis;
+    let near2 = pos12.transform_point(shape2.hull.local_support_point(toward1));
+    near2.dot(axis) - reach1
+}
+
+/// Whether the gap along the unit `axis` proves the hulls apart where GJK would find them apart
+/// too, so that the answer is the same either way: GJK (at prediction 0) may call hulls
+/// touching within `sqrt(10 eps)`, about 5e-8, of the pair's extent (parry's
+/// `gjk::closest_points`), and a millionth of it is far beyond that.
+fn apart_for_sure(axis: DVec3, pos12: &Pose, shape1: &Shape, shape2: &Shape) -> bool {
+    let (h1, h2) = (shape1.local_box_half_extents, shape2.local_box_half_extents);
+    let extent = 1.0 + pos12.translation.length() + h1.length() + h2.length();
+    gap_along(axis, pos12, shape1, shape2) > SEPARATION_BEYOND_GJK * extent
+}
+
+/// Share of a pair's extent by which [`apart_for_sure`] asks hulls to be apart.
+const SEPARATION_BEYOND_GJK: f64 = 1e-6;
 
 /// Contact between the hulls of two bodies at their current poses, if they touch or overlap.
 /// parry's `normal1` points from shape 1 to shape 2, `-dist` is the depth and `point2` lies on

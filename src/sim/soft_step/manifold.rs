@@ -10,12 +10,13 @@
 //! distance of the plane y = 0.
 
 use crate::sim::body::RigidBody;
+use crate::sim::narrow_phase::gap_along;
 use crate::sim::shape::Shape;
 use glam::{DQuat, DVec3};
 use parry3d_f64::math::Pose;
 use parry3d_f64::query::ContactManifold;
 use parry3d_f64::query::details::{contact_manifold_cuboid_cuboid, contact_manifold_pfm_pfm};
-use parry3d_f64::shape::{Cuboid, SupportMap};
+use parry3d_f64::shape::Cuboid;
 use smallvec::{SmallVec, smallvec};
 
 /// Index standing for the ground plane in a manifold's `body1`.
@@ -148,10 +149,7 @@ fn gap_along_cached_axis(state: &PairState, pos12: &Pose, shape1: &Shape, shape2
             None => return f64::NEG_INFINITY,
         },
     };
-    let reach1 = shape1.hull.local_support_point(axis).dot(axis);
-    let toward1 = pos12.rotation.inverse() * -axis;
-    let near2 = pos12.transform_point(shape2.hull.local_support_point(toward1));
-    near2.dot(axis) - reach1
+    gap_along(axis, pos12, shape1, shape2)
 }
 
 /// Each candidate pair's [`PairState`], kept in the pairs' (sorted) order.
