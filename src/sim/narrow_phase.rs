@@ -367,16 +367,18 @@ pub fn body_contact_patch(
 
 /// Contact with the ground plane y = 0, whose body is immovable and plays body 2: depth is minus
 /// the lowest vertex's height, normal `(0,-1,0)`, point the lowest vertex (first one on ties).
-/// With `patch`, the point is instead the centroid of all vertices at or below the ground.
+/// With `patch`, the point is instead the centroid of the hull's corners at or below the ground:
+/// a vertex inside a face (the course's `box_tri.mesh` has one in its bottom face) pulled it off
+/// the face's centre, and a box resting flat rocked and gained energy (56 % in 10 s at dt 0.02).
 pub fn ground_contact(body: &RigidBody, shape: &Shape, patch: bool) -> Option<Contact> {
     let mut lowest = DVec3::splat(f64::INFINITY);
     let (mut below_sum, mut below_count) = (DVec3::ZERO, 0);
-    for &v in &shape.rest_vertices {
+    for (&v, &corner) in shape.rest_vertices.iter().zip(&shape.on_hull) {
         let p = body.world_point(v);
         if p.y < lowest.y {
             lowest = p;
         }
-        if patch && p.y <= 0.0 {
+        if patch && corner && p.y <= 0.0 {
             below_sum += p;
             below_count += 1;
         }
@@ -384,7 +386,8 @@ pub fn ground_contact(body: &RigidBody, shape: &Shape, patch: bool) -> Option<Co
     if lowest.y.is_nan() || lowest.y > 0.0 {
         return None;
     }
-    let point2 = if patch {
+    // The lowest vertex is a corner, so a patch has one at least.
+    let point2 = if patch && below_count > 0 {
         below_sum / below_count as f64
     } else {
         lowest

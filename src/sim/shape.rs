@@ -146,6 +146,9 @@ pub struct Shape {
     /// The first `named_vertices` rest vertices are the mesh file's own, those a constraint
     /// may name (see [`TetMesh::added_vertices`]).
     pub named_vertices: usize,
+    /// Whether each rest vertex is a corner of the hull: not inside it, nor inside one of its
+    /// faces or edges (the course's `box_tri.mesh` has a vertex inside its bottom face).
+    pub on_hull: Vec<bool>,
 }
 
 impl std::fmt::Debug for Shape {
@@ -183,9 +186,9 @@ impl Shape {
             |(lo, hi), v| (lo.min(*v), hi.max(*v)),
         );
         let (center, half) = ((min + max) / 2.0, (max - min) / 2.0);
+        let on_hull = corners_of(&rest_vertices, hull.points());
         Ok(Shape {
             is_box: hull_is_box(hull.points(), center, half),
-            rest_vertices,
             triangles,
             tetrahedra: mesh.tetrahedra.clone(),
             volume: props.volume,
@@ -194,6 +197,8 @@ impl Shape {
             local_box_center: center,
             local_box_half_extents: half,
             named_vertices: mesh.vertices.len().saturating_sub(mesh.added_vertices),
+            on_hull,
+            rest_vertices,
         })
     }
 }
@@ -257,6 +262,17 @@ fn positive_definite(m: DMat3) -> bool {
 }
 
 /// Whether `points` are the eight corners of the box `center +- half` (to a relative 1e-12).
+/// For each vertex, whether it is one of the hull's `corners` (parry's hull keeps the input
+/// points it uses, bit for bit).
+fn corners_of(vertices: &[DVec3], corners: &[DVec3]) -> Vec<bool> {
+    let bits = |v: &DVec3| v.to_array().map(f64::to_bits);
+    let corners: std::collections::HashSet<[u64; 3]> = corners.iter().map(bits).collect();
+    vertices
+        .iter()
+        .map(|v| corners.contains(&bits(v)))
+        .collect()
+}
+
 fn hull_is_box(points: &[DVec3], center: DVec3, half: DVec3) -> bool {
     let tolerance = 1e-12 * (center.abs() + half).max_element();
     let mut corners_met = 0u8;
@@ -352,6 +368,32 @@ fn orient_outward(vertices: &[DVec3], triangles: &mut [[u32; 3]]) {
 mod tests {
     use super::*;
     use crate::scene::assets;
+
+    /// The hull's corners are the vertices it is spanned by: a box's eight, not the centre its
+    /// tetrahedra fan from; a cylinder's rims, not its caps' centres (vertices inside faces).
+    #[test]
+    fn corners_are_the_vertices_spanning_the_hull() {
+        let box_shape = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(3.0, 1.5, 2.0))).unwrap();
+        let flags = &box_shape.on_hull;
+        assert_eq!(flags.iter().filter(|&&c| c).count(), 8);
+        for (v, &corner) in box_shape.rest_vertices.iter().zip(flags) {
+            let at_corner = (v.abs() - DVec3::new(3.0, 1.5, 2.0)).abs().max_element() < 1e-12;
+            assert_eq!(corner, at_corner, "{v}");
+        }
+        let (_, cylinder) = assets::all_meshes()
+            .into_iter()
+            .find(|(n, _)| *n == "cylinder")
+            .unwrap();
+        let cylinder = Shape::from_tet_mesh(&cylinder).unwrap();
+        for (v, &corner) in cylinder.rest_vertices.iter().zip(&cylinder.on_hull) {
+            let on_rim = (v.x * v.x + v.z * v.z).sqrt() > 1e-6;
+            assert_eq!(corner, on_rim, "{v}");
+        }
+        assert_eq!(
+            cylinder.on_hull.iter().filter(|&&c| c).count(),
+            cylinder.hull.points().len()
+        );
+    }
 
     /// A box is one; a box turned in its mesh (its body-space box is no longer its hull), a box
     /// with one corner moved, an octahedron and a tetrahedron are not.
