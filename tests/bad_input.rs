@@ -139,6 +139,15 @@ fn missing_files() {
     let empty = tumble::scene::load("", &ConstraintsChoice::Auto, Settings::default());
     let shown = empty.map(|_| ()).unwrap_err().to_string();
     assert!(shown.starts_with("'': no such file"), "{shown}");
+    for name in ["chain-1", "chain-15"] {
+        expect(
+            tumble::scene::load(name, &ConstraintsChoice::Auto, Settings::default())
+                .map(|_| unreachable!()),
+            name,
+            None,
+            "N must be a multiple of 10 (chains of 10 links)",
+        );
+    }
     for name in ["stack-0", "pile-x", "scatter-1000001", "rope-"] {
         expect(
             tumble::scene::load(name, &ConstraintsChoice::Auto, Settings::default())
@@ -158,7 +167,7 @@ fn scene_file_errors() {
         load(&dir, "2\nt.mesh 1 0 0 0 0 1 0 0 0\n", None),
         "s-scene.txt",
         Some(1),
-        "says 2",
+        "says 2 but the file holds at most 1 such record",
     );
     expect(
         load(
@@ -1195,9 +1204,18 @@ fn cli_names_the_setting_a_negative_value_breaks() {
         let args = ["run", "pile-20", "--steps", "1", flag, "-1"].map(os);
         cli_fails_saying(&args, words);
     }
+    // A count past the type's range is a whole number too: said to be too large.
+    let huge = ["run", "pile-20", "--steps", "99999999999999999999999"].map(os);
+    let words = "99999999999999999999999 is more than the most allowed here, 18446744073709551615";
+    cli_fails_saying(&huge, words);
     // A mesh where a scene is expected is called a mesh (it read as a scene counting "OFF").
     let mesh = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/box.mesh");
     cli_fails_saying(&["run", mesh].map(os), "a mesh, not a scene");
+    let with_mesh = ["run", "two-chain", "--steps", "1", "--constraints", mesh];
+    cli_fails_saying(
+        &with_mesh.map(os),
+        "box.mesh: a mesh, not a constraint file",
+    );
     if !cfg!(feature = "viewer") {
         return;
     }
@@ -1248,6 +1266,10 @@ fn bench_options_out_of_range_are_named() {
             "--scatter-sizes: each size must be",
         ),
         (["scale", "--steps", "0"], "--steps must be at least 1"),
+        (
+            ["scale", "--sizes", "15"],
+            "--sizes: chain-N needs N a multiple of 10 (chains of 10 links), got 15",
+        ),
         (
             ["scale", "--steps", "18446744073709551615"],
             "--steps must be at most 1000000, got 18446744073709551615",
@@ -1337,8 +1359,11 @@ fn run_help_names_the_scenes_and_the_defaults() {
         ("Time step in seconds", d.time_step),
         ("1 = elastic)", d.restitution),
         ("no friction)", d.friction),
-        ("constraint visits", d.max_iterations as f64),
-        ("Constraint tolerance", d.tolerance),
+        (
+            "constraint visits (coursework solver)",
+            d.max_iterations as f64,
+        ),
+        ("Constraint tolerance (coursework solver)", d.tolerance),
         ("bounce with e = 0", d.restitution_threshold),
         ("longer than 1/200 s)", d.substeps as f64),
     ] {
@@ -1415,8 +1440,9 @@ fn cli_refuses_a_constraint_file_for_a_generated_scene() {
     assert!(out.status.success());
 }
 
-/// A constraint budget that cannot visit each inequality once a step is said, with the budget
-/// that can: chain-100's 180 inequalities get ceil(10000 / 180) = 56 visits a step.
+/// A constraint budget that cannot visit each inequality once a step is said, with the least
+/// budget that can: chain-100's 180 inequalities get ceil(10000 / 180) = 56 visits a step, and
+/// 180 from 179 x 180 + 1 = 32221 on.
 #[cfg(feature = "cli")]
 #[test]
 fn cli_warns_of_a_budget_short_of_one_pass() {
@@ -1431,18 +1457,12 @@ fn cli_warns_of_a_budget_short_of_one_pass() {
     let warned = stderr(&["run", "chain-100", "--steps", "1"]);
     assert!(
         warned.contains("allows 56 constraint visits a step for 180 inequalities")
-            && warned.contains("--max-iterations 32400 or more"),
+            && warned.contains("--max-iterations 32221 or more"),
         "{warned}"
     );
-    let enough = [
-        "run",
-        "chain-100",
-        "--steps",
-        "1",
-        "--max-iterations",
-        "39204",
-    ];
-    assert!(!stderr(&enough).contains("warning"));
+    let budget = |k: &'static str| ["run", "chain-100", "--steps", "1", "--max-iterations", k];
+    assert!(stderr(&budget("32220")).contains("allows 179 constraint visits a step"));
+    assert!(!stderr(&budget("32221")).contains("warning"));
     assert!(!stderr(&["run", "two-chain", "--steps", "1"]).contains("warning"));
     assert!(!stderr(&["run", "chain-100", "--steps", "1", "--accurate"]).contains("warning"));
 }

@@ -91,7 +91,7 @@ pub struct SoakArgs {
     /// Use the `--accurate` preset instead of the coursework defaults.
     #[arg(long)]
     pub accurate: bool,
-    /// Print one JSON object instead of the table.
+    /// Print a JSON array instead of the table: one object per scene.
     #[arg(long)]
     pub json: bool,
 }
@@ -128,6 +128,14 @@ fn check_scale_config(config: &ScaleConfig) -> anyhow::Result<()> {
                 "{flag}: each size must be a whole number from 1 to {MAX_GENERATED}, got {n}"
             );
         }
+    }
+    let links = tumble::scene::generate::CHAIN_LINKS;
+    if config.scenes.iter().any(|s| s == "chain")
+        && let Some(n) = config.sizes.iter().find(|n| !n.is_multiple_of(links))
+    {
+        anyhow::bail!(
+            "--sizes: chain-N needs N a multiple of {links} (chains of {links} links), got {n}"
+        );
     }
     if config.steps == 0 {
         anyhow::bail!("--steps must be at least 1");

@@ -31,19 +31,19 @@ pub struct SettingsArgs {
     pub friction: Option<f64>,
     /// The coursework's maxIterations: the constraint loop stops once visits x M reach K, M being
     /// the number of inequality constraints (two per constraint record), so a step makes at most
-    /// ceil(K / M) constraint visits [default: 10000].
+    /// ceil(K / M) constraint visits (coursework solver) [default: 10000].
     #[arg(long, value_name = "K", allow_negative_numbers = true, value_parser = whole_number::<usize>)]
     pub max_iterations: Option<usize>,
     /// Gravity, X,Y,Z in units/s^2 (the ground is y = 0) [default: 0,-9.8,0].
     #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = parse_vector)]
     pub gravity: Option<DVec3>,
-    /// Constraint tolerance [default: 0.001].
+    /// Constraint tolerance (coursework solver) [default: 0.001].
     #[arg(long, value_name = "T", allow_negative_numbers = true)]
     pub tolerance: Option<f64>,
     /// Start from the best setting combination found by `tumble bench accuracy`.
     #[arg(long)]
     pub accurate: bool,
-    /// No impulse for contacts whose bodies already separate.
+    /// No impulse for contacts whose bodies already separate (coursework solver).
     #[arg(long)]
     pub skip_separating_contacts: bool,
     /// Contacts closing slower than this (units/s) bounce with e = 0 [default: 0; 0.5 with
@@ -53,7 +53,9 @@ pub struct SettingsArgs {
     /// Never put resting islands to sleep (soft-step solver).
     #[arg(long)]
     pub no_sleep: bool,
-    /// Contacts act at the centroid of the contact patch instead of one deepest point.
+    /// Contacts act at the centroid of the contact patch instead of one deepest point: of the
+    /// hull's corners at or below the ground, of the points where two hulls' faces overlap
+    /// (coursework solver).
     #[arg(long)]
     pub contact_patches: bool,
     /// Substeps per step (the soft step takes more in a step that begins with contacts touching
@@ -71,7 +73,7 @@ pub struct SettingsArgs {
     /// Broad phase (both give identical results) [default: grid].
     #[arg(long, value_enum)]
     pub broad_phase: Option<BroadPhase>,
-    /// Constraint schedule [default: sweep].
+    /// Constraint schedule (coursework solver) [default: sweep].
     #[arg(long, value_enum)]
     pub constraint_schedule: Option<ConstraintSchedule>,
 }
@@ -267,9 +269,27 @@ pub fn decimals(x: f64, places: usize) -> String {
 }
 
 /// A count given on the command line: clap's own message for "-1" is "invalid digit".
-pub fn whole_number<T: std::str::FromStr>(text: &str) -> Result<T, String> {
-    text.parse()
-        .map_err(|_| format!("expected a whole number, 0 or more, got '{text}'"))
+pub fn whole_number<T: Count>(text: &str) -> Result<T, String> {
+    text.parse().map_err(|e: std::num::ParseIntError| {
+        if *e.kind() == std::num::IntErrorKind::PosOverflow {
+            format!("{text} is more than the most allowed here, {}", T::LARGEST)
+        } else {
+            format!("expected a whole number, 0 or more, got '{text}'")
+        }
+    })
+}
+
+/// The unsigned counts a flag may take ([`whole_number`]) and their largest values.
+pub trait Count: std::str::FromStr<Err = std::num::ParseIntError> + std::fmt::Display {
+    const LARGEST: Self;
+}
+
+impl Count for u64 {
+    const LARGEST: Self = u64::MAX;
+}
+
+impl Count for usize {
+    const LARGEST: Self = usize::MAX;
 }
 
 /// `--constraints FILE|none`.
@@ -320,7 +340,8 @@ fn short_budget(world: &tumble::World) -> Option<String> {
              makes one pass",
             s.max_iterations,
             tumble::io::counted(visits as u64, "constraint visit", "constraint visits"),
-            m.saturating_mul(m)
+            // ceil(K / M) >= M from K = (M - 1) M + 1 on.
+            (m - 1).saturating_mul(m).saturating_add(1)
         )
     })
 }

@@ -387,12 +387,21 @@ fn worst_violation(s: &RunSummary) -> String {
 
 /// The summary's lines on the state the run ended in: energy, sleep, blow-ups, stage times.
 fn print_state_at_end(out: &mut impl Write, s: &RunSummary) -> std::io::Result<()> {
-    let change = 100.0 * (s.energy_end - s.energy_start) / s.energy_start.abs().max(1e-300);
+    // The share first: 100 times an energy of 3e306 was infinite.
+    let change = 100.0 * ((s.energy_end - s.energy_start) / s.energy_start.abs().max(1e-300));
     // Past a billion percent in scientific notation (`--dt 1e9` printed twenty digits).
     let sign = if change >= 0.0 { "+" } else { "" };
+    let frozen = match s.quarantined.len() {
+        0 => String::new(),
+        n => format!(
+            "; the end leaves out {}, potential energy {:.6e}",
+            counted(n as u64, "frozen body", "frozen bodies"),
+            s.energy_frozen
+        ),
+    };
     writeln!(
         out,
-        "energy {:.6e} -> {:.6e} ({sign}{}%)",
+        "energy {:.6e} -> {:.6e} ({sign}{}%{frozen})",
         s.energy_start,
         s.energy_end,
         super::decimals(change, 3)
@@ -427,8 +436,13 @@ fn print_state_at_end(out: &mut impl Write, s: &RunSummary) -> std::io::Result<(
         };
         writeln!(
             out,
-            "all values finite: false ({} blew up and were frozen: {}{more})",
+            "all values finite: false ({} blew up and {} frozen: {}{more})",
             counted(s.quarantined.len() as u64, "body", "bodies"),
+            if s.quarantined.len() == 1 {
+                "was"
+            } else {
+                "were"
+            },
             shown.join(", ")
         )?;
     }

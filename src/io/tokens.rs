@@ -337,8 +337,12 @@ impl<'a> Tokens<'a> {
         }
         let available = self.remaining() / tokens_per_record.max(1);
         if count > available {
-            let mut message =
-                format!("{what} says {count} but the file holds at most {available} such records");
+            let holds = match available {
+                0 => "none".to_string(),
+                1 => "at most 1 such record".to_string(),
+                n => format!("at most {n} such records"),
+            };
+            let mut message = format!("{what} says {count} but the file holds {holds}");
             if let Some(at) = &self.layout_break {
                 message = format!("{message} ({})", at.note());
             }

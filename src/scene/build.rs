@@ -90,6 +90,13 @@ pub(super) fn load_with(
     }
     let mut distance_constraints = Vec::new();
     if let Some(cpath) = constraint_path {
+        // A mesh read as constraints failed on its first word ("expected the number of
+        // constraints, found 'OFF'"), as a mesh read as a scene did.
+        if mesh_reader(&cpath).is_some() {
+            let problem = "a mesh, not a constraint file: a constraint file lists distance \
+                           records between vertices of the scene's bodies";
+            return Err(LoadError::new(&cpath, None, problem));
+        }
         // A user-named file is read from disk even when the scene is built in.
         let text = match constraints {
             ConstraintsChoice::File(_) => Disk.read(&cpath)?,

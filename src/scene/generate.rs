@@ -167,20 +167,24 @@ pub fn pile(n: usize, settings: Settings) -> World {
     World::new(shapes, names, bodies, Vec::new(), settings)
 }
 
+/// Boxes in each chain of `chain-N`.
+pub const CHAIN_LINKS: usize = 10;
+
 /// `chain-N`: N/10 chains of 10 boxes, each hanging from a fixed first box, links of bounds
 /// 0.9..1.1 between a bottom corner and the next box's top corner (as the coursework's chains).
+/// One chain at least (loading refuses an N that is not a multiple of ten).
 pub fn chain(n: usize, settings: Settings) -> World {
     let shapes = vec![shape_of(&assets::cuboid(DVec3::new(2.0, 1.0, 1.5)))];
-    let chains = (n / 10).max(1);
+    let chains = (n / CHAIN_LINKS).max(1);
     let side = (chains as f64).sqrt().ceil() as usize;
-    let mut bodies = Vec::with_capacity(chains * 10);
+    let mut bodies = Vec::with_capacity(chains * CHAIN_LINKS);
     let mut constraints = Vec::new();
     let mut rng = Rng::new(0x5EED_0003);
     for c in 0..chains {
         let (x, z) = (12.0 * (c % side) as f64, 12.0 * (c / side) as f64);
         // The chain starts tilted so that it swings.
         let lean = rng.range(-1.0, 1.0);
-        for k in 0..10 {
+        for k in 0..CHAIN_LINKS {
             let position = DVec3::new(x + lean * k as f64, 80.0 - 4.0 * k as f64, z);
             bodies.push(RigidBody::on_shape(
                 &shapes[0],
@@ -272,7 +276,7 @@ pub const FAMILIES: [(&str, &str); 6] = [
         "N bodies at sparse-1000's spacing, the area growing with N",
     ),
     ("pile-N", "N bodies dropped into a walled bin"),
-    ("chain-N", "N/10 chains of ten links"),
+    ("chain-N", "N/10 chains of ten links (N a multiple of 10)"),
     (
         "rope-N",
         "one rope of N links swinging down from the horizontal",

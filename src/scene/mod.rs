@@ -107,6 +107,13 @@ fn generated(
             )));
         }
     };
+    // chain-15 was ten bodies, as chain-1 and chain-19 were, without a word.
+    if kind == "chain" && !n.is_multiple_of(generate::CHAIN_LINKS) {
+        let links = generate::CHAIN_LINKS;
+        let problem =
+            format!("chain-N: N must be a multiple of {links} (chains of {links} links), not {n}");
+        return Some(Err(problem));
+    }
     // Refused before the scene is built: a million bodies for an error.
     if !matches!(constraints, ConstraintsChoice::Auto) {
         let problem = "a generated scene makes its own distance constraints (chain-N, rope-N) \
