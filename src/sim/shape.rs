@@ -261,7 +261,6 @@ fn positive_definite(m: DMat3) -> bool {
     a > 0.0 && a * c - b * b > 0.0 && m.determinant() > 0.0
 }
 
-/// Whether `points` are the eight corners of the box `center +- half` (to a relative 1e-12).
 /// For each vertex, whether it is one of the hull's `corners` (parry's hull keeps the input
 /// points it uses, bit for bit).
 fn corners_of(vertices: &[DVec3], corners: &[DVec3]) -> Vec<bool> {
@@ -273,6 +272,7 @@ fn corners_of(vertices: &[DVec3], corners: &[DVec3]) -> Vec<bool> {
         .collect()
 }
 
+/// Whether `points` are the eight corners of the box `center +- half` (to a relative 1e-12).
 fn hull_is_box(points: &[DVec3], center: DVec3, half: DVec3) -> bool {
     let tolerance = 1e-12 * (center.abs() + half).max_element();
     let mut corners_met = 0u8;
