@@ -1487,6 +1487,40 @@ fn a_slow_pendulum_never_sleeps_at_its_apex() {
     }
 }
 
+/// A box in mid-air under a gravity too weak for the sleep test's velocity change (0.03
+/// units/s^2, where 0.04 changes a velocity by the test's limit within the time to sleep)
+/// touches nothing and hangs from nothing: it falls as `y0 - g t^2 / 2` and never sleeps (it
+/// slept at 0.5 s, 10 units up, found by review).
+#[test]
+fn a_body_in_free_flight_never_sleeps() {
+    let shape = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(6.0, 3.0, 4.0))).unwrap();
+    let body = RigidBody::on_shape(&shape, 0, 1.0, false, DVec3::Y * 10.0, DQuat::IDENTITY);
+    let g = 0.03;
+    let settings = Settings {
+        gravity: DVec3::new(0.0, -g, 0.0),
+        ..accurate(0.02)
+    };
+    let mut world = World::new(
+        vec![shape],
+        vec!["box".into()],
+        vec![body],
+        vec![],
+        settings,
+    );
+    let steps = 500;
+    for _ in 0..steps {
+        world.step();
+        assert!(!world.bodies[0].asleep, "asleep at {} s", world.time);
+    }
+    let t = steps as f64 * 0.02;
+    let fallen = 10.0 - 0.5 * g * t * t;
+    assert!(
+        (world.bodies[0].position.y - fallen).abs() < 1e-9,
+        "{}",
+        world.bodies[0].position
+    );
+}
+
 /// An octahedron standing upright on one vertex and spinning about the vertical: the ground
 /// presses at one point, so only the twist friction's smallest lever
 /// ([`MIN_TWIST_RADIUS`]) slows the spin, at the constant rate `mu m g r / I` (the tilt from

@@ -9,7 +9,9 @@
 //! island of a few within [`REST_VELOCITY_CHANGE`] (a pendulum of 100 units swinging by 2 is
 //! slower than the sleep speed for a second round each apex, and slept there, off centre, for
 //! ever; a box starting to slide down a slope too steep for its friction slept at 0.5 s; see
-//! [`FEW_BODIES`]). The island's energy, not each body's speed as in Box2D: in a pile of ten
+//! [`FEW_BODIES`]). An island that touches neither the ground nor a fixed or sleeping body, and
+//! hangs from no fixed body, is in free flight and never sleeps, however weak the gravity. The island's energy, not each body's
+//! speed as in Box2D: in a pile of ten
 //! thousand one body rocking at 0.1 units/s in a contact's limit cycle kept every other awake
 //! (pile-10000 at dt 0.02 and restitution 0.15, 0.2 and 0.25 was asleep by 20 s, by 20 s and
 //! not within 30 s; on the island's energy at 13, 16 and 13 s).
@@ -53,6 +55,12 @@ pub struct Islands {
     energy: Vec<f64>,
     /// Whether each body touches something (by body).
     touched: Vec<bool>,
+    /// Whether each body touches the ground, a fixed body or a sleeping one, or hangs from a
+    /// fixed body by a constraint (by body).
+    held: Vec<bool>,
+    /// Whether some body of each island is held (by root): an island that is not is in free
+    /// flight and never rests.
+    supported: Vec<bool>,
     /// Sleeping bodies an awake body touches, found by the last [`settle`] (see
     /// [`Islands::touched_sleepers`]).
     touched_sleepers: Vec<usize>,
@@ -69,8 +77,10 @@ impl Islands {
             sums.clear();
             sums.resize(n, 0.0);
         }
-        self.touched.clear();
-        self.touched.resize(n, false);
+        for flags in [&mut self.touched, &mut self.held, &mut self.supported] {
+            flags.clear();
+            flags.resize(n, false);
+        }
         self.touched_sleepers.clear();
     }
 
@@ -130,13 +140,18 @@ pub fn settle(
     });
     islands.reset(bodies.len());
     let (touched, touched_sleepers) = (&mut islands.touched, &mut islands.touched_sleepers);
+    let held = &mut islands.held;
     let view = &*bodies;
+    // What does not fall: the ground, a fixed body, a sleeping one.
+    let holds = |k: usize| k == GROUND || !view[k].is_dynamic() || view[k].asleep;
     let touching = touching.inspect(|&(i, j)| {
         touched[j] = true;
+        held[j] |= holds(i);
         if i == GROUND {
             return;
         }
         touched[i] = true;
+        held[i] |= holds(j);
         let sleeps = |k: usize| view[k].asleep && view[k].is_dynamic();
         match (view[i].is_awake(), view[j].is_awake()) {
             (true, false) if sleeps(j) => touched_sleepers.push(j),
@@ -150,10 +165,16 @@ pub fn settle(
     // Each island's mass and twice its kinetic energy (of the speeds above); each body's root
     // found once.
     let roots: Vec<usize> = (awake.iter()).map(|a| islands.sets.root(a.index)).collect();
+    for c in constraints {
+        for (body, other) in [(c.body1, c.body2), (c.body2, c.body1)] {
+            islands.held[body] |= !view[other].is_dynamic();
+        }
+    }
     for (a, &root) in awake.iter().zip(&roots) {
         islands.energy[root] += a.mass * a.speed * a.speed;
         islands.mass[root] += a.mass;
         islands.members[root] += 1;
+        islands.supported[root] |= islands.held[a.index];
     }
     for (a, &root) in awake.iter().zip(&roots) {
         let i = a.index;
@@ -165,7 +186,13 @@ pub fn settle(
             (false, true) => f64::INFINITY,
         };
         rest_for(&mut bodies[i], a, (calm, limit), dt);
-        islands.least[root] = islands.least[root].min(bodies[i].sleep_time);
+        // In free flight under a gravity too weak for the velocity test (a box falling at
+        // 0.03 units/s^2 slept in mid-air at 0.5 s), the island rests no time at all.
+        let rested = match islands.supported[root] {
+            true => bodies[i].sleep_time,
+            false => 0.0,
+        };
+        islands.least[root] = islands.least[root].min(rested);
     }
     // An island rests when its least rested body does.
     for (&Awake { index: i, .. }, &root) in awake.iter().zip(&roots) {
@@ -324,8 +351,18 @@ mod tests {
     }
 
     /// Moves each body along x at its speed for 1.2 [`TIME_TO_SLEEP`], the pairs `touching`
-    /// held together, settling after each step of 0.01 s.
+    /// held together, every body on the ground, settling after each step of 0.01 s.
     fn settle_moving(bodies: &mut [RigidBody], speeds: &[f64], touching: &[(usize, usize)]) {
+        let on_ground: Vec<(usize, usize)> = (0..bodies.len()).map(|k| (GROUND, k)).collect();
+        settle_moving_touching(bodies, speeds, &[touching, &on_ground].concat());
+    }
+
+    /// [`settle_moving`] with only the pairs `touching`.
+    fn settle_moving_touching(
+        bodies: &mut [RigidBody],
+        speeds: &[f64],
+        touching: &[(usize, usize)],
+    ) {
         let (dt, mut islands) = (0.01, Islands::default());
         for _ in 0..(1.2 * TIME_TO_SLEEP / dt).ceil() as usize {
             let start: Vec<_> = bodies.iter().map(|b| (b.position, b.orientation)).collect();
@@ -372,5 +409,18 @@ mod tests {
         let mut alone = resting_bodies(1);
         settle_moving(&mut alone, &[0.3], &[]);
         assert!(!alone[0].asleep);
+    }
+
+    /// Bodies at rest touching nothing that holds them are in free flight (under a gravity too
+    /// weak to show within the time to sleep): two touching each other never sleep, while the
+    /// same two with one of them on the ground sleep (a third, alone in the air, does not).
+    #[test]
+    fn an_island_touching_nothing_never_sleeps() {
+        let mut bodies = resting_bodies(3);
+        settle_moving_touching(&mut bodies, &[0.0; 3], &[(0, 1)]);
+        assert!(bodies.iter().all(|b| !b.asleep));
+        let mut bodies = resting_bodies(3);
+        settle_moving_touching(&mut bodies, &[0.0; 3], &[(0, 1), (GROUND, 1)]);
+        assert!(bodies[0].asleep && bodies[1].asleep && !bodies[2].asleep);
     }
 }
