@@ -11,6 +11,7 @@ pub mod broad_phase;
 pub mod buffer;
 pub mod cell_table;
 pub mod constraint;
+pub mod contact_patch;
 pub mod coursework;
 pub mod grab;
 pub mod grid;
