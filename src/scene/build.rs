@@ -88,39 +88,52 @@ pub(super) fn load_with(
         inputs.push(path.to_path_buf());
         inputs.extend(shape_of_path.into_keys());
     }
-    let mut distance_constraints = Vec::new();
-    if let Some(cpath) = constraint_path {
-        // A mesh read as constraints failed on its first word ("expected the number of
-        // constraints, found 'OFF'"), as a mesh read as a scene did.
-        if mesh_reader(&cpath).is_some() {
-            let problem = "a mesh, not a constraint file: a constraint file lists distance \
-                           records between vertices of the scene's bodies";
-            return Err(LoadError::new(&cpath, None, problem));
+    let distance_constraints = match constraint_path {
+        Some(cpath) => {
+            let read = (source, constraints, &mut inputs, &mut warnings);
+            load_constraints(&cpath, read, (&bodies, &shapes))?
         }
-        // A user-named file is read from disk even when the scene is built in.
-        let text = match constraints {
-            ConstraintsChoice::File(_) => Disk.read(&cpath)?,
-            _ => source.read(&cpath)?,
-        };
-        if source.on_disk() || matches!(constraints, ConstraintsChoice::File(_)) {
-            inputs.push(cpath.clone());
-        }
-        let parsed = parse_constraints(&cpath, &text)?;
-        warnings.extend(parsed.layout_warning.map(|w| w.to_string()));
-        distance_constraints =
-            build_constraints(&cpath, &parsed.records, &bodies, &shapes, &mut warnings)?;
-        warnings.extend(conflicting_bounds(
-            &cpath,
-            &parsed.records,
-            &bodies,
-            &shapes,
-        ));
-    }
+        None => Vec::new(),
+    };
     let mut world = World::new(shapes, shape_names, bodies, distance_constraints, settings);
     warnings.extend(starting_overlaps(&world, path, &records));
     world.warnings = warnings;
     world.inputs = inputs;
     Ok(world)
+}
+
+/// The distance constraints of the file `cpath` between `bodies`; the file joins `inputs` where
+/// it is on disk, and its warnings join `warnings`.
+fn load_constraints(
+    cpath: &Path,
+    (source, constraints, inputs, warnings): (
+        &dyn FileSource,
+        &ConstraintsChoice,
+        &mut Vec<PathBuf>,
+        &mut Vec<String>,
+    ),
+    (bodies, shapes): (&[RigidBody], &[Shape]),
+) -> Result<Vec<DistanceConstraint>, LoadError> {
+    // A user-named file is read from disk even when the scene is built in.
+    let text = match constraints {
+        ConstraintsChoice::File(_) => Disk.read(cpath)?,
+        _ => source.read(cpath)?,
+    };
+    // A mesh read as constraints failed on its first word ("expected the number of
+    // constraints, found 'OFF'"), as a mesh read as a scene did.
+    if mesh_reader(cpath).is_some() {
+        let problem = "a mesh, not a constraint file: a constraint file lists distance records \
+                       between vertices of the scene's bodies";
+        return Err(LoadError::new(cpath, None, problem));
+    }
+    if source.on_disk() || matches!(constraints, ConstraintsChoice::File(_)) {
+        inputs.push(cpath.to_path_buf());
+    }
+    let parsed = parse_constraints(cpath, &text)?;
+    warnings.extend(parsed.layout_warning.map(|w| w.to_string()));
+    let built = build_constraints(cpath, &parsed.records, bodies, shapes, warnings)?;
+    warnings.extend(conflicting_bounds(cpath, &parsed.records, bodies, shapes));
+    Ok(built)
 }
 
 /// Depth, as a share of the smaller body's least extent, from which a body that starts inside

@@ -177,7 +177,8 @@ pub fn gap_along(axis: DVec3, pos12: &Pose, shape1: &Shape, shape2: &Shape) -> f
 /// Whether the gap along the unit `axis` proves the hulls apart where GJK would find them apart
 /// too, so that the answer is the same either way: GJK (at prediction 0) may call hulls
 /// touching within `sqrt(10 eps)`, about 5e-8, of the pair's extent (parry's
-/// `gjk::closest_points`), and a millionth of it is far beyond that.
+/// `gjk::closest_points`; its support points, measured from the centres of mass, reach at most
+/// about twice the extent taken here), and a millionth of it is far beyond that.
 fn apart_for_sure(axis: DVec3, pos12: &Pose, shape1: &Shape, shape2: &Shape) -> bool {
     let (h1, h2) = (shape1.local_box_half_extents, shape2.local_box_half_extents);
     let extent = 1.0 + pos12.translation.length() + h1.length() + h2.length();
@@ -342,17 +343,19 @@ fn extreme_feature(points: &[DVec3], direction: DVec3) -> (DVec3, usize) {
     (mean, tied.len())
 }
 
-/// Like [`body_contact`], but with the exact depth and normal of the separating-axis test
-/// ([`sat_contact`], where GJK finds the hulls touching), acting at the centroid of the contact
-/// patch: of the points where parry's contact manifold (feature clipping) finds the hulls'
-/// faces overlapping. EPA's normal on faces built exactly flush leans sideways (two plates
-/// rocked and gained 2.7 times their energy in 5 s), and parry's manifold normal there can be
-/// wrong outright (the plates, and a box set flush on another, were pushed sideways by their
-/// full width and fell through each other). Two kinds of manifold are not taken:
+/// Like [`body_contact`], but acting at the centroid of the contact patch: of the points where
+/// parry's contact manifold (feature clipping) finds the hulls' faces overlapping. Between hulls
+/// of few corners ([`sat_pays`]: boxes, tetrahedra, octahedra) the depth and normal are the
+/// separating-axis test's, exact, where GJK finds the hulls meeting (so no fallback is counted):
+/// on faces built exactly flush EPA's normal leans sideways (two plates rocked and gained 2.7
+/// times their energy in 5 s) and parry's manifold normal can be wrong outright (a box set flush
+/// on another was pushed sideways by its whole width, 8 units, and fell through it; so did two
+/// plates). Between larger hulls, [`body_contact`]'s. Not taken from the manifold:
 /// - GJK's own point, which parry adds to the clipped ones, where there are others: one more
 ///   corner pulled the centroid off the patch's middle, and a box resting on another rocked
 ///   and gained 15 % of its energy in 10 s at dt 0.02 (found by review);
-/// - a manifold whose normal is not the contact's: there the contact's own point serves.
+/// - any point, where the manifold's normal is not the contact's: the contact's own point
+///   serves.
 pub fn body_contact_patch(
     body1: &RigidBody,
     shape1: &Shape,
@@ -361,11 +364,20 @@ pub fn body_contact_patch(
 ) -> Detection {
     use parry3d_f64::query::{ContactManifold, DefaultQueryDispatcher, PersistentQueryDispatcher};
     let pose12 = pose(body1).inv_mul(&pose(body2));
-    if !hulls_meet(&pose12, shape1, shape2) {
-        return Detection::apart();
-    }
-    let Some(contact) = sat_contact(body1, shape1, body2, shape2) else {
-        return Detection::apart();
+    let (contact, fallback) = if sat_pays(shape1, shape2) {
+        let exact = hulls_meet(&pose12, shape1, shape2)
+            .then(|| sat_contact(body1, shape1, body2, shape2))
+            .flatten();
+        (exact, false)
+    } else {
+        let single = body_contact(body1, shape1, body2, shape2);
+        (single.contact, single.fallback)
+    };
+    let Some(contact) = contact else {
+        return Detection {
+            contact: None,
+            fallback,
+        };
     };
     let mut manifolds: Vec<ContactManifold<(), ()>> = Vec::new();
     let found = DefaultQueryDispatcher.contact_manifolds(
@@ -385,9 +397,21 @@ pub fn body_contact_patch(
             point2: centroid.unwrap_or(contact.point2),
             ..contact
         }),
-        fallback: false,
+        fallback,
     }
 }
+
+/// Whether the separating-axis test is cheap enough for every touching pair of these hulls: it
+/// tries every pair of their edge directions against all their corners, which grows as the
+/// product of their edges times their corners (one fuzzed world of tumble's meshes took 101 s
+/// for its steps, 0.5 s with this limit). Boxes, tetrahedra and octahedra pass; cylinders and
+/// ellipsoids do not.
+fn sat_pays(shape1: &Shape, shape2: &Shape) -> bool {
+    shape1.hull.points().len() + shape2.hull.points().len() <= SAT_MOST_CORNERS
+}
+
+/// Most corners of two hulls between which a patch takes the separating-axis test's contact.
+const SAT_MOST_CORNERS: usize = 24;
 
 /// The mean of `manifold`'s touching points on body 2, its clipped ones where it has any (GJK's
 /// point, with no feature on either side, left out), where its normal is `normal`.
@@ -413,13 +437,12 @@ fn patch_centroid(
 /// Contact with the ground plane y = 0, whose body is immovable and plays body 2: depth is minus
 /// the lowest vertex's height, normal `(0,-1,0)`, point the lowest vertex (first one on ties).
 /// With `patch`, the point is instead the point of the patch of the hull's corners at or below
-/// the ground nearest under the centre of mass ([`ground_patch_point`]). (Every vertex there,
-/// averaged, was pulled off a face's centre by a vertex inside it, as the course's
-/// `box_tri.mesh` has in its bottom face: resting flat it rocked and gained 56 % of its energy
-/// in 10 s at dt 0.02.)
+/// the ground nearest under the centre of mass ([`ground_patch_point`]). Corners only: a vertex
+/// inside the hull spans no patch (a box's centre, below the ground only when it is half sunk).
 pub fn ground_contact(body: &RigidBody, shape: &Shape, patch: bool) -> Option<Contact> {
     let mut lowest = DVec3::splat(f64::INFINITY);
     let mut below: SmallVec<[DVec3; 16]> = SmallVec::new();
+    debug_assert_eq!(shape.rest_vertices.len(), shape.on_hull.len());
     for (&v, &corner) in shape.rest_vertices.iter().zip(&shape.on_hull) {
         let p = body.world_point(v);
         if p.y < lowest.y {
@@ -432,7 +455,8 @@ pub fn ground_contact(body: &RigidBody, shape: &Shape, patch: bool) -> Option<Co
     if lowest.y.is_nan() || lowest.y > 0.0 {
         return None;
     }
-    // The lowest vertex is a corner, so a patch has one at least.
+    // The lowest vertex is a corner of the hull, so a patch has one at least (but for rounding,
+    // where the lowest point serves).
     let point2 = if patch && !below.is_empty() {
         ground_patch_point(body.position, &below)
     } else {

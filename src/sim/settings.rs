@@ -119,8 +119,10 @@ pub struct Settings {
     pub skip_separating_contacts: bool,
     /// Contacts whose normal closing speed is below this get `e = 0` (0 = off).
     pub restitution_threshold: f64,
-    /// Contacts act at the centroid of the contact patch (all penetrating points) rather than at
-    /// one deepest point: resting faces get no spurious torque.
+    /// Contacts act on the whole contact patch rather than at one deepest point, so that a body
+    /// resting on a face gets no spurious torque: against the ground at the patch's point
+    /// nearest under the centre of mass, between bodies at the centroid of the faces' overlap
+    /// (see [`crate::sim::narrow_phase::body_contact_patch`]).
     pub contact_patches: bool,
     /// Substeps per step, each of `time_step / substeps` (Macklin et al. 2019). The coursework
     /// solver repeats its whole update; the soft-step solver detects contacts once per step and

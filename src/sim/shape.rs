@@ -146,8 +146,9 @@ pub struct Shape {
     /// The first `named_vertices` rest vertices are the mesh file's own, those a constraint
     /// may name (see [`TetMesh::added_vertices`]).
     pub named_vertices: usize,
-    /// Whether each rest vertex is a corner of the hull: not inside it, nor inside one of its
-    /// faces or edges (the course's `box_tri.mesh` has a vertex inside its bottom face).
+    /// Whether each rest vertex is a corner of the hull, one of the points parry's hull keeps:
+    /// not inside it, nor (but for ties parry keeps) inside one of its faces or edges (the
+    /// course's `box_tri.mesh` has a vertex inside its bottom face).
     pub on_hull: Vec<bool>,
 }
 

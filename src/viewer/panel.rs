@@ -564,7 +564,9 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
         .on_hover_text("Islands resting for half a second sleep until touched (soft-step solver)");
     ui.checkbox(contact_patches, "contact patches")
         .on_hover_text(
-            "Contacts act at the centroid of the contact patch, not at one deepest point",
+            "Contacts act on the whole contact patch, not at one deepest point: against the \
+             ground under the centre of mass, between bodies at the overlap's centroid \
+             (coursework solver)",
         );
     enum_choice(ui, "rotation integrator", rotation_integrator);
     enum_choice(ui, "broad phase", broad_phase);
