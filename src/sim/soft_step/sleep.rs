@@ -11,9 +11,10 @@
 //! ever; a box starting to slide down a slope too steep for its friction slept at 0.5 s; see
 //! [`FEW_BODIES`]). An island that touches neither the ground nor a fixed or sleeping body, and
 //! hangs from no fixed body, is in free flight and never sleeps, however weak the gravity. The
-//! island's energy, not each body's speed as in Box2D: in a pile of ten thousand one body rocking at 0.1 units/s in a contact's limit cycle kept every other awake
-//! (pile-10000 at dt 0.02 and restitution 0.15, 0.2 and 0.25 was asleep by 20 s, by 20 s and
-//! not within 30 s; on the island's energy at 13, 16 and 13 s).
+//! island's energy, not each body's speed as in Box2D: in a pile of ten thousand one body
+//! rocking at 0.1 units/s in a contact's limit cycle kept every other awake (pile-10000 at dt
+//! 0.02 and restitution 0.15, 0.2 and 0.25 was asleep by 20 s, by 20 s and not within 30 s; on
+//! the island's energy at 13, 16 and 13 s).
 //!
 //! The speed is that of the step's displacement, as Rapier measures it, not of the velocities
 //! kept: those carry what the last Gauss-Seidel pass left unconverged in a deep pile, which the
