@@ -139,22 +139,22 @@ fn missing_files() {
     let empty = tumble::scene::load("", &ConstraintsChoice::Auto, Settings::default());
     let shown = empty.map(|_| ()).unwrap_err().to_string();
     assert!(shown.starts_with("'': no such file"), "{shown}");
-    for name in ["chain-1", "chain-15"] {
+    let count = "N must be a whole number from 1 to 1000000";
+    let links = "N must be a multiple of 10 (chains of 10 links)";
+    for (name, words) in [
+        ("stack-0", count),
+        ("pile-x", count),
+        ("scatter-1000001", count),
+        ("rope-", count),
+        ("chain-1", links),
+        ("chain-15", links),
+    ] {
         expect(
             tumble::scene::load(name, &ConstraintsChoice::Auto, Settings::default())
                 .map(|_| unreachable!()),
             name,
             None,
-            "N must be a multiple of 10 (chains of 10 links)",
-        );
-    }
-    for name in ["stack-0", "pile-x", "scatter-1000001", "rope-"] {
-        expect(
-            tumble::scene::load(name, &ConstraintsChoice::Auto, Settings::default())
-                .map(|_| unreachable!()),
-            name,
-            None,
-            "N must be a whole number from 1 to 1000000",
+            words,
         );
     }
 }
