@@ -350,7 +350,8 @@ fn extreme_feature(points: &[DVec3], direction: DVec3) -> (DVec3, usize) {
 /// on faces built exactly flush EPA's normal leans sideways (two plates rocked, their energy 2.7
 /// times what it was after 5 s) and parry's manifold normal can be wrong outright (a box set
 /// flush on another was pushed sideways by a contact 8 units deep, its size along z, and fell
-/// through it; so did two plates). Between larger hulls, [`body_contact`]'s. Not taken from the manifold:
+/// through it; so did two plates). Between larger hulls, [`body_contact`]'s. Not taken from the
+/// manifold:
 /// - GJK's own point, which parry adds to the clipped ones, where there are others: one more
 ///   corner pulled the centroid off the patch's middle, and a box resting on another rocked
 ///   and gained 15 % of its energy in 10 s at dt 0.02 (found by review);
