@@ -180,9 +180,13 @@ pub fn gap_along(axis: DVec3, pos12: &Pose, shape1: &Shape, shape2: &Shape) -> f
 /// `gjk::closest_points`; its support points, measured from the centres of mass, reach at most
 /// about twice the extent taken here), and a millionth of it is far beyond that.
 fn apart_for_sure(axis: DVec3, pos12: &Pose, shape1: &Shape, shape2: &Shape) -> bool {
-    let (h1, h2) = (shape1.local_box_half_extents, shape2.local_box_half_extents);
-    let extent = 1.0 + pos12.translation.length() + h1.length() + h2.length();
-    gap_along(axis, pos12, shape1, shape2) > SEPARATION_BEYOND_GJK * extent
+    let gap = gap_along(axis, pos12, shape1, shape2);
+    // The extent's three square roots only for a gap that may pass (the touching pairs' is not).
+    gap > 0.0 && {
+        let (h1, h2) = (shape1.local_box_half_extents, shape2.local_box_half_extents);
+        let extent = 1.0 + pos12.translation.length() + h1.length() + h2.length();
+        gap > SEPARATION_BEYOND_GJK * extent
+    }
 }
 
 /// Share of a pair's extent by which [`apart_for_sure`] asks hulls to be apart.
@@ -443,13 +447,14 @@ fn patch_centroid(
 pub fn ground_contact(body: &RigidBody, shape: &Shape, patch: bool) -> Option<Contact> {
     let mut lowest = DVec3::splat(f64::INFINITY);
     let mut below: SmallVec<[DVec3; 16]> = SmallVec::new();
-    debug_assert_eq!(shape.rest_vertices.len(), shape.on_hull.len());
-    for (&v, &corner) in shape.rest_vertices.iter().zip(&shape.on_hull) {
+    for (k, &v) in shape.rest_vertices.iter().enumerate() {
         let p = body.world_point(v);
         if p.y < lowest.y {
             lowest = p;
         }
-        if patch && corner && p.y <= 0.0 {
+        // The flags read only for a patch: the default's ground stage reads every vertex of
+        // every body each step.
+        if patch && p.y <= 0.0 && shape.on_hull.get(k) == Some(&true) {
             below.push(p);
         }
     }
