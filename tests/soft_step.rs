@@ -1521,6 +1521,58 @@ fn a_body_in_free_flight_never_sleeps() {
     );
 }
 
+/// Without gravity a body at rest stays at rest: touching nothing, it sleeps after the time to
+/// sleep and stays where it was (stop 72's free-flight rule kept it awake for ever), while one
+/// drifting at 1 unit/s moves on at that speed, awake.
+#[test]
+fn a_weightless_body_at_rest_sleeps_and_a_drifting_one_does_not() {
+    use tumble::sim::soft_step::sleep::TIME_TO_SLEEP;
+    let shape = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(6.0, 3.0, 4.0))).unwrap();
+    let at = |x: f64| {
+        RigidBody::on_shape(
+            &shape,
+            0,
+            1.0,
+            false,
+            DVec3::new(x, 10.0, 0.0),
+            DQuat::IDENTITY,
+        )
+    };
+    let (resting, mut drifting) = (at(0.0), at(50.0));
+    drifting.linear_velocity = DVec3::X;
+    let settings = Settings {
+        gravity: DVec3::ZERO,
+        ..accurate(0.02)
+    };
+    let bodies = vec![resting, drifting];
+    let mut world = World::new(
+        vec![shape.clone()],
+        vec!["box".into()],
+        bodies,
+        vec![],
+        settings,
+    );
+    let steps = 250;
+    for _ in 0..steps {
+        world.step();
+    }
+    let (resting, drifting) = (&world.bodies[0], &world.bodies[1]);
+    assert!(
+        resting.asleep,
+        "the resting box is awake at {} s",
+        world.time
+    );
+    assert_eq!(resting.position, DVec3::new(0.0, 10.0, 0.0));
+    assert!(!drifting.asleep);
+    let t = steps as f64 * 0.02;
+    assert!(
+        (drifting.position.x - (50.0 + t)).abs() < 1e-9,
+        "{}",
+        drifting.position
+    );
+    assert!(TIME_TO_SLEEP < t);
+}
+
 /// An octahedron standing upright on one vertex and spinning about the vertical: the ground
 /// presses at one point, so only the twist friction's smallest lever
 /// ([`MIN_TWIST_RADIUS`]) slows the spin, at the constant rate `mu m g r / I` (the tilt from

@@ -817,7 +817,7 @@ impl SoftStep {
                 start,
                 constraints,
                 touching,
-                ctx.settings.time_step,
+                (ctx.settings.time_step, ctx.settings.gravity),
             );
         }
         self.touched_sleepers.clear();

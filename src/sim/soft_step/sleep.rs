@@ -10,7 +10,8 @@
 //! slower than the sleep speed for a second round each apex, and slept there, off centre, for
 //! ever; a box starting to slide down a slope too steep for its friction slept at 0.5 s; see
 //! [`FEW_BODIES`]). An island that touches neither the ground nor a fixed or sleeping body, and
-//! hangs from no fixed body, is in free flight and never sleeps, however weak the gravity. The
+//! hangs from no fixed body, is in free flight and never sleeps, however weak the gravity, unless
+//! there is none (then a body at rest stays where it is, and its sleep changes nothing). The
 //! island's energy, not each body's speed as in Box2D: in a pile of ten thousand one body
 //! rocking at 0.1 units/s in a contact's limit cycle kept every other awake (pile-10000 at dt
 //! 0.02 and restitution 0.15, 0.2 and 0.25 was asleep by 20 s, by 20 s and not within 30 s; on
@@ -109,9 +110,9 @@ fn links<'a>(
         .filter(move |&(i, j)| i != GROUND && bodies[i].is_dynamic() && bodies[j].is_dynamic())
 }
 
-/// Updates sleep timers after a step of `dt` from the poses it began at (`start`), then puts
-/// to sleep every island of awake bodies (joined by `touching` pairs and constraints) whose
-/// bodies all rested long enough.
+/// Updates sleep timers after a step of `dt` under `gravity` from the poses it began at
+/// (`start`), then puts to sleep every island of awake bodies (joined by `touching` pairs and
+/// constraints) whose bodies all rested long enough.
 pub fn settle(
     islands: &mut Islands,
     bodies: &mut [RigidBody],
@@ -119,7 +120,7 @@ pub fn settle(
     start: &[(glam::DVec3, glam::DQuat)],
     constraints: &[DistanceConstraint],
     touching: impl Iterator<Item = (usize, usize)>,
-    dt: f64,
+    (dt, gravity): (f64, glam::DVec3),
 ) {
     // One pass over the bodies, which keeps the awake ones' indices, speeds and masses for the
     // islands: three passes over 100,000 bodies of 300 bytes took scatter-100000's sleeping
@@ -170,11 +171,13 @@ pub fn settle(
             islands.held[body] |= !view[other].is_dynamic();
         }
     }
+    // Without gravity nothing falls: every island is as good as held.
+    let weightless = gravity == glam::DVec3::ZERO;
     for (a, &root) in awake.iter().zip(&roots) {
         islands.energy[root] += a.mass * a.speed * a.speed;
         islands.mass[root] += a.mass;
         islands.members[root] += 1;
-        islands.supported[root] |= islands.held[a.index];
+        islands.supported[root] |= weightless || islands.held[a.index];
     }
     for (a, &root) in awake.iter().zip(&roots) {
         let i = a.index;
@@ -363,6 +366,16 @@ mod tests {
         speeds: &[f64],
         touching: &[(usize, usize)],
     ) {
+        settle_moving_under(bodies, speeds, touching, DVec3::new(0.0, -9.8, 0.0));
+    }
+
+    /// [`settle_moving_touching`] under `gravity`.
+    fn settle_moving_under(
+        bodies: &mut [RigidBody],
+        speeds: &[f64],
+        touching: &[(usize, usize)],
+        gravity: DVec3,
+    ) {
         let (dt, mut islands) = (0.01, Islands::default());
         for _ in 0..(1.2 * TIME_TO_SLEEP / dt).ceil() as usize {
             let start: Vec<_> = bodies.iter().map(|b| (b.position, b.orientation)).collect();
@@ -372,7 +385,15 @@ mod tests {
                 }
             }
             let links = touching.iter().copied();
-            settle(&mut islands, bodies, &[1.0], &start, &[], links, dt);
+            settle(
+                &mut islands,
+                bodies,
+                &[1.0],
+                &start,
+                &[],
+                links,
+                (dt, gravity),
+            );
         }
     }
 
@@ -414,13 +435,21 @@ mod tests {
     /// Bodies at rest touching nothing that holds them are in free flight (under a gravity too
     /// weak to show within the time to sleep): two touching each other never sleep, while the
     /// same two with one of them on the ground sleep (a third, alone in the air, does not).
+    /// Without gravity, where a body at rest stays at rest, all three sleep.
     #[test]
-    fn an_island_touching_nothing_never_sleeps() {
+    fn an_island_touching_nothing_never_sleeps_unless_nothing_falls() {
         let mut bodies = resting_bodies(3);
         settle_moving_touching(&mut bodies, &[0.0; 3], &[(0, 1)]);
         assert!(bodies.iter().all(|b| !b.asleep));
         let mut bodies = resting_bodies(3);
         settle_moving_touching(&mut bodies, &[0.0; 3], &[(0, 1), (GROUND, 1)]);
         assert!(bodies[0].asleep && bodies[1].asleep && !bodies[2].asleep);
+        let mut bodies = resting_bodies(3);
+        let weak = DVec3::new(0.0, -1e-12, 0.0);
+        settle_moving_under(&mut bodies, &[0.0; 3], &[(0, 1)], weak);
+        assert!(bodies.iter().all(|b| !b.asleep));
+        let mut bodies = resting_bodies(3);
+        settle_moving_under(&mut bodies, &[0.0; 3], &[(0, 1)], DVec3::ZERO);
+        assert!(bodies.iter().all(|b| b.asleep));
     }
 }
