@@ -87,7 +87,6 @@ impl RapierScene {
             body.linear_velocity = rb.linvel();
             body.angular_velocity = rb.angvel();
         }
-        world.time += world.settings.time_step;
-        world.step_count += 1;
+        world.count_step();
     }
 }

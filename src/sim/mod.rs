@@ -10,6 +10,7 @@ pub mod body;
 pub mod broad_phase;
 pub mod buffer;
 pub mod cell_table;
+pub mod clock;
 pub mod constraint;
 pub mod contact_patch;
 pub mod coursework;

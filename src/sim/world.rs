@@ -4,6 +4,7 @@
 use super::aabb::{Aabb, body_aabb};
 use super::body::{RigidBody, any_awake};
 use super::broad_phase::BroadPhase;
+use super::clock::SimClock;
 use super::constraint::DistanceConstraint;
 use super::coursework::contact_stage::{
     Bodies, ContactStage, contact_between, resolve_ground_contacts,
@@ -32,7 +33,7 @@ pub struct World {
     pub bodies: Vec<RigidBody>,
     pub constraints: Vec<DistanceConstraint>,
     pub settings: Settings,
-    /// Simulated seconds so far.
+    /// Simulated seconds so far (counted in steps, see [`SimClock`]).
     pub time: f64,
     pub step_count: u64,
     /// Notes from loading (ignored constraints, ...), for the user.
@@ -56,6 +57,7 @@ pub struct World {
     /// Whether bodies may be flagged asleep for the coursework's step to wake: a soft step
     /// ran, or a state was restored, since its last step.
     may_sleep: bool,
+    clock: SimClock,
 }
 
 impl World {
@@ -84,6 +86,7 @@ impl World {
             settings,
             time: 0.0,
             step_count: 0,
+            clock: SimClock::default(),
             warnings: Vec::new(),
             inputs: Vec::new(),
             grab: None,
@@ -125,9 +128,16 @@ impl World {
             Solver::Coursework => self.coursework_step(&ctx),
             Solver::SoftStep => self.soft_step(&ctx),
         };
-        self.time += ctx.settings.time_step;
-        self.step_count += 1;
+        self.count_step();
         stats
+    }
+
+    /// Counts one step of the settings' time step in [`World::time`] and
+    /// [`World::step_count`] (for a loop that moves the bodies by other means, as the bench's
+    /// Rapier runs do).
+    pub fn count_step(&mut self) {
+        self.time = self.clock.advance(self.time, self.settings.time_step);
+        self.step_count += 1;
     }
 
     /// The step's stage timer: on or off as [`World::time_stages`] says.
@@ -239,6 +249,7 @@ impl World {
             bodies: self.bodies.clone(),
             time: self.time,
             step_count: self.step_count,
+            clock: self.clock,
             soft_step: self.soft_step.carried(),
             quarantine: self.quarantine.clone(),
         }
@@ -249,6 +260,7 @@ impl World {
         self.bodies.clone_from(&state.bodies);
         self.time = state.time;
         self.step_count = state.step_count;
+        self.clock = state.clock;
         self.soft_step.restore(&state.soft_step);
         self.quarantine.clone_from(&state.quarantine);
         self.may_sleep = true;
@@ -372,6 +384,7 @@ pub struct WorldState {
     bodies: Vec<RigidBody>,
     time: f64,
     step_count: u64,
+    clock: SimClock,
     soft_step: super::soft_step::Carried,
     quarantine: Quarantine,
 }
