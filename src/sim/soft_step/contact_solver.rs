@@ -974,7 +974,7 @@ fn solve_block<const N: usize>(
 /// The matrix `K` of a manifold's normal rows `rows`: the velocity along row `i` a unit impulse
 /// along row `j` gives.
 #[inline(always)]
-fn coupling<const N: usize>(
+pub(super) fn coupling<const N: usize>(
     rows: &[Direction; N],
     (b1, b2): (&SolverBody, &SolverBody),
 ) -> [[f64; N]; N] {

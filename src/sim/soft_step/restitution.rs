@@ -14,10 +14,12 @@
 
 use super::constraint_graph::Colours;
 use super::contact_solver::{
-    ContactConstraint, ContactPoint, bounce_velocity, for_each_contact_from, impact_energy,
-    separation_now,
+    ContactConstraint, ContactPoint, Direction, bounce_velocity, coupling, for_each_contact_from,
+    impact_energy, separation_now,
 };
 use super::disjoint_sets::DisjointSets;
+use super::manifold::MAX_POINTS;
+use super::normal_block;
 use super::solver_body::SolverBody;
 use crate::sim::body::RigidBody;
 use crate::sim::constraint::DistanceConstraint;
@@ -173,10 +175,7 @@ pub fn apply(
                 return;
             }
             let flags = &bounces.points[c.points()];
-            let mut change: f64 = 0.0;
-            for (p, &bounce) in points.iter_mut().zip(flags) {
-                change = change.max(restitute(c, p, (bounce, restitution), (b1, b2)));
-            }
+            let change = restitute_manifold(c, (points, flags), restitution, (b1, b2));
             // Non-negative numbers order as their bits. Written only when larger, so that the
             // threads do not trade the line at every manifold.
             if change.to_bits() > largest[g].load(Ordering::Relaxed) {
@@ -192,6 +191,97 @@ pub fn apply(
         }
     }
     solved
+}
+
+/// One manifold's update in a pass of [`apply`]: its points that bounce or support solved
+/// together ([`normal_block`]) where there are two or more, so that the pass does not depend on
+/// the points' order; point after point ([`restitute`]) where there is one, or the block cannot
+/// be solved. Point after point, the first of four equally deep points took more than its share
+/// and a box dropped flat onto a stack of two left turning at 2 degrees a second (40 degrees
+/// within 5 s of bounces at e = 1). Returns the largest change of a point's normal velocity.
+fn restitute_manifold(
+    c: &ContactConstraint,
+    (points, bounces): (&mut [ContactPoint], &[bool]),
+    restitution: f64,
+    (b1, b2): (&mut SolverBody, &mut SolverBody),
+) -> f64 {
+    let mut rows = [0usize; MAX_POINTS];
+    let mut count = 0;
+    for (k, (p, &bounce)) in points.iter().zip(bounces).enumerate() {
+        if bounce || p.max_normal_impulse != 0.0 {
+            rows[count] = k;
+            count += 1;
+        }
+    }
+    let rule = (bounces, restitution);
+    let solved = match count {
+        2 => restitute_block::<2>(c, points, (&rows, rule), (b1, b2)),
+        3 => restitute_block::<3>(c, points, (&rows, rule), (b1, b2)),
+        4 => restitute_block::<4>(c, points, (&rows, rule), (b1, b2)),
+        _ => None,
+    };
+    solved.unwrap_or_else(|| {
+        let mut change: f64 = 0.0;
+        for (p, &bounce) in points.iter_mut().zip(bounces) {
+            change = change.max(restitute(c, p, (bounce, restitution), (b1, b2)));
+        }
+        change
+    })
+}
+
+/// The restitution impulses of a manifold's `N` points at `rows` solved together, as the linear
+/// complementarity problem the point-by-point passes converge to: each point's impulse
+/// `r_i >= lo_i` (a bouncing point may take back what it held but never pull, `lo_i` = minus
+/// its normal impulse; a support adds, `lo_i = 0`) and its normal velocity `v_i >= t_i` (its
+/// bounce velocity, or 0 for a support), one of the two at its bound. With `x = r - lo`:
+/// `x >= 0`, `w = K x + q >= 0`, `x_i w_i = 0`, `q = v - t + K (lo - r_held)`; the rows given
+/// [`normal_block::COMPLIANCE`] so that a flat face's `K` is definite. None where the block
+/// cannot be solved (nothing applied then); else the largest change of a normal velocity.
+#[inline(always)]
+fn restitute_block<const N: usize>(
+    c: &ContactConstraint,
+    points: &mut [ContactPoint],
+    (rows, (bounces, restitution)): (&[usize; MAX_POINTS], (&[bool], f64)),
+    (b1, b2): (&mut SolverBody, &mut SolverBody),
+) -> Option<f64> {
+    let n = c.normal;
+    let directions: [Direction; N] = std::array::from_fn(|i| points[rows[i]].along_normal(n));
+    let held: [f64; N] = std::array::from_fn(|i| points[rows[i]].restitution_impulse);
+    let lower: [f64; N] = std::array::from_fn(|i| match bounces[rows[i]] {
+        true => -points[rows[i]].normal_impulse,
+        false => 0.0,
+    });
+    let target: [f64; N] = std::array::from_fn(|i| {
+        let p = &points[rows[i]];
+        match bounces[rows[i]] {
+            true => {
+                let s = separation_now(p, n, b1, b2);
+                bounce_velocity(p.impact_energy, restitution, s, c.normal_acceleration)
+            }
+            false => 0.0,
+        }
+    });
+    let mut a = coupling(&directions, (b1, b2));
+    let q: [f64; N] = std::array::from_fn(|i| {
+        let v = directions[i].velocity(n, b1, b2);
+        v - target[i] + (0..N).map(|j| a[i][j] * (lower[j] - held[j])).sum::<f64>()
+    });
+    for (i, row) in a.iter_mut().enumerate() {
+        row[i] += normal_block::COMPLIANCE * row[i];
+    }
+    let start: [f64; N] = std::array::from_fn(|i| held[i] - lower[i]);
+    let x = normal_block::solve(&a, &q, &start)?;
+    let mut change: f64 = 0.0;
+    for i in 0..N {
+        let p = &mut points[rows[i]];
+        let delta = x[i] + lower[i] - p.restitution_impulse;
+        p.restitution_impulse = x[i] + lower[i];
+        directions[i].apply(n, delta, b1, b2);
+        if p.normal_mass > 0.0 {
+            change = change.max((delta / p.normal_mass).abs());
+        }
+    }
+    Some(change)
 }
 
 /// One point's update in a pass of [`apply`]: a bouncing point driven to its bounce at
