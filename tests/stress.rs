@@ -3,7 +3,7 @@ mod common;
 
 use glam::{DQuat, DVec3};
 use tumble::scene::{assets, generate};
-use tumble::sim::settings::ConstraintSchedule;
+use tumble::sim::settings::{ConstraintSchedule, Solver};
 use tumble::{Settings, World};
 
 /// Lowest point of a body below the ground, by its vertices.
@@ -506,5 +506,39 @@ fn nan_does_not_reach_a_constrained_partner() {
         let g = world.settings.gravity;
         assert_eq!(world.frozen_energy(), world.bodies[0].energy(g));
         assert_eq!(world.total_energy(), world.bodies[1].energy(g));
+    }
+}
+
+/// Simulated time under time steps that are not valid (not finite, negative): each such step
+/// counts as none, as the step itself takes it, and the time goes on from where it stood once
+/// the step is valid again (counted from there: 0.2 + 10 x 0.02).
+#[test]
+fn the_time_holds_through_steps_that_are_not_valid() {
+    for solver in [Solver::Coursework, Solver::SoftStep] {
+        let settings = Settings {
+            solver,
+            time_step: 0.02,
+            ..Settings::default()
+        };
+        let mut world = two_bodies(
+            (1.0, DVec3::new(0.0, 5.0, 0.0)),
+            (1.0, DVec3::new(5.0, 5.0, 0.0)),
+            settings,
+        );
+        for _ in 0..10 {
+            world.step();
+        }
+        assert_eq!(world.time, 0.2, "{solver:?}");
+        for bad in [f64::NAN, f64::INFINITY, -0.02] {
+            world.settings.time_step = bad;
+            world.step();
+            assert_eq!(world.time, 0.2, "{solver:?}, dt {bad}");
+        }
+        world.settings.time_step = 0.02;
+        for _ in 0..10 {
+            world.step();
+        }
+        assert_eq!(world.time, 0.2 + 10.0 * 0.02, "{solver:?}");
+        assert_eq!(world.step_count, 23);
     }
 }

@@ -87,6 +87,6 @@ impl RapierScene {
             body.linear_velocity = rb.linvel();
             body.angular_velocity = rb.angvel();
         }
-        world.count_step();
+        world.count_step(world.settings.time_step);
     }
 }

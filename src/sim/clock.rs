@@ -2,7 +2,8 @@
 
 /// Simulated time as `origin + steps * dt`, where `origin` is the time at which the time step
 /// last changed (or the time was set): a running sum of `dt` gathers a rounding each step, so
-/// that 198 steps of 0.02 read 3.960000000000003 s, where this reads 3.96.
+/// that 198 steps of 0.02 read 3.960000000000003 s, where this reads 3.96 (from an origin of 0,
+/// `steps * dt` rounded once; from another, twice).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct SimClock {
     origin: f64,

@@ -128,15 +128,17 @@ impl World {
             Solver::Coursework => self.coursework_step(&ctx),
             Solver::SoftStep => self.soft_step(&ctx),
         };
-        self.count_step();
+        self.count_step(ctx.settings.time_step);
         stats
     }
 
-    /// Counts one step of the settings' time step in [`World::time`] and
-    /// [`World::step_count`] (for a loop that moves the bodies by other means, as the bench's
-    /// Rapier runs do).
-    pub fn count_step(&mut self) {
-        self.time = self.clock.advance(self.time, self.settings.time_step);
+    /// Counts one step of `dt` in [`World::time`] and [`World::step_count`] (also for a loop
+    /// that moves the bodies by other means, as the bench's Rapier runs do). A `dt` that is not
+    /// finite or is negative counts as none, as the step itself takes it ([`Settings`]'s
+    /// sanitizing): the time holds, and goes on from there once the step is valid again.
+    pub fn count_step(&mut self, dt: f64) {
+        let dt = if dt.is_finite() && dt >= 0.0 { dt } else { 0.0 };
+        self.time = self.clock.advance(self.time, dt);
         self.step_count += 1;
     }
 
