@@ -10,8 +10,9 @@
 //! slower than the sleep speed for a second round each apex, and slept there, off centre, for
 //! ever; a box starting to slide down a slope too steep for its friction slept at 0.5 s; see
 //! [`FEW_BODIES`]). An island that touches neither the ground nor a fixed or sleeping body, and
-//! hangs from no fixed body, is in free flight and never sleeps, however weak the gravity, unless
-//! there is none (then a body at rest stays where it is, and its sleep changes nothing). The
+//! hangs from no fixed body, is in free flight and never sleeps, however weak the gravity; where
+//! there is none, it sleeps only while it is still ([`STILL_SPEED`]): a body at rest stays where
+//! it is, and its sleep changes nothing, but one drifting keeps its momentum. The
 //! island's energy, not each body's speed as in Box2D: in a pile of ten thousand one body
 //! rocking at 0.1 units/s in a contact's limit cycle kept every other awake (pile-10000 at dt
 //! 0.02 and restitution 0.15, 0.2 and 0.25 was asleep by 20 s, by 20 s and not within 30 s; on
@@ -41,6 +42,10 @@ pub const SLEEP_SPEED_CAP: f64 = 4.0 * SLEEP_SPEED;
 pub const POSITION_SLEEP_FACTOR: f64 = 0.5;
 /// Seconds an island must rest before it sleeps.
 pub const TIME_TO_SLEEP: f64 = 0.5;
+/// Speed (units/s, weighed as [`SLEEP_SPEED`] is) under which an island in free flight without
+/// gravity counts as still and may sleep: a millionth of a unit a second, where one drifting
+/// slower than the sleep speed would otherwise be stopped, its momentum lost.
+pub const STILL_SPEED: f64 = 1e-6;
 
 /// The islands [`settle`] finds and the buffers it works in: kept from step to step, so a step
 /// allocates nothing.
@@ -122,23 +127,7 @@ pub fn settle(
     touching: impl Iterator<Item = (usize, usize)>,
     (dt, gravity): (f64, glam::DVec3),
 ) {
-    // One pass over the bodies, which keeps the awake ones' indices, speeds and masses for the
-    // islands: three passes over 100,000 bodies of 300 bytes took scatter-100000's sleeping
-    // from 5-6.5 to 8.8-9.6 ms a step.
-    let items = bodies.par_iter().zip(start).enumerate();
-    let awake: Vec<Awake> = parallel::filter_map(items, 1024, |(i, (b, &(p0, q0)))| {
-        if !b.is_awake() {
-            return None;
-        }
-        let turn = (q0.conjugate() * b.orientation).normalize();
-        let angle = 2.0 * turn.xyz().length().atan2(turn.w.abs());
-        let moved = (b.position - p0).length() + angle * radii[b.shape];
-        Some(Awake {
-            index: i,
-            speed: POSITION_SLEEP_FACTOR * moved / dt,
-            mass: b.mass,
-        })
-    });
+    let awake = awake_bodies(bodies, radii, start, dt);
     islands.reset(bodies.len());
     let (touched, touched_sleepers) = (&mut islands.touched, &mut islands.touched_sleepers);
     let held = &mut islands.held;
@@ -171,14 +160,13 @@ pub fn settle(
             islands.held[body] |= !view[other].is_dynamic();
         }
     }
-    // Without gravity nothing falls: every island is as good as held.
-    let weightless = gravity == glam::DVec3::ZERO;
     for (a, &root) in awake.iter().zip(&roots) {
         islands.energy[root] += a.mass * a.speed * a.speed;
         islands.mass[root] += a.mass;
         islands.members[root] += 1;
-        islands.supported[root] |= weightless || islands.held[a.index];
+        islands.supported[root] |= islands.held[a.index];
     }
+    let weightless = gravity == glam::DVec3::ZERO;
     for (a, &root) in awake.iter().zip(&roots) {
         let i = a.index;
         let calm = islands.energy[root] < islands.mass[root] * SLEEP_SPEED * SLEEP_SPEED;
@@ -190,8 +178,10 @@ pub fn settle(
         };
         rest_for(&mut bodies[i], a, (calm, limit), dt);
         // In free flight under a gravity too weak for the velocity test (a box falling at
-        // 0.03 units/s^2 slept in mid-air at 0.5 s), the island rests no time at all.
-        let rested = match islands.supported[root] {
+        // 0.03 units/s^2 slept in mid-air at 0.5 s), the island rests no time at all; without
+        // gravity, only while it is still.
+        let still = weightless && islands.energy[root] < islands.mass[root] * STILL_SPEED.powi(2);
+        let rested = match islands.supported[root] || still {
             true => bodies[i].sleep_time,
             false => 0.0,
         };
@@ -212,6 +202,32 @@ pub fn settle(
     islands
         .touched_sleepers
         .retain(|&j| least[sets.root(j)] < TIME_TO_SLEEP);
+}
+
+/// The awake bodies' steps, measured from the poses they began at (`start`). One pass over the
+/// bodies, which keeps the awake ones' indices, speeds and masses for the islands: three passes
+/// over 100,000 bodies of 300 bytes took scatter-100000's sleeping from 5-6.5 to 8.8-9.6 ms a
+/// step.
+fn awake_bodies(
+    bodies: &[RigidBody],
+    radii: &[f64],
+    start: &[(glam::DVec3, glam::DQuat)],
+    dt: f64,
+) -> Vec<Awake> {
+    let items = bodies.par_iter().zip(start).enumerate();
+    parallel::filter_map(items, 1024, |(i, (b, &(p0, q0)))| {
+        if !b.is_awake() {
+            return None;
+        }
+        let turn = (q0.conjugate() * b.orientation).normalize();
+        let angle = 2.0 * turn.xyz().length().atan2(turn.w.abs());
+        let moved = (b.position - p0).length() + angle * radii[b.shape];
+        Some(Awake {
+            index: i,
+            speed: POSITION_SLEEP_FACTOR * moved / dt,
+            mass: b.mass,
+        })
+    })
 }
 
 /// An awake body as [`settle`] measured its step.
@@ -435,7 +451,7 @@ mod tests {
     /// Bodies at rest touching nothing that holds them are in free flight (under a gravity too
     /// weak to show within the time to sleep): two touching each other never sleep, while the
     /// same two with one of them on the ground sleep (a third, alone in the air, does not).
-    /// Without gravity, where a body at rest stays at rest, all three sleep.
+    /// Without gravity, where a body at rest stays at rest, all three sleep, unless they drift.
     #[test]
     fn an_island_touching_nothing_never_sleeps_unless_nothing_falls() {
         let mut bodies = resting_bodies(3);
@@ -451,5 +467,9 @@ mod tests {
         let mut bodies = resting_bodies(3);
         settle_moving_under(&mut bodies, &[0.0; 3], &[(0, 1)], DVec3::ZERO);
         assert!(bodies.iter().all(|b| b.asleep));
+        // Drifting at 0.01 units/s (a fifth of the sleep speed), they keep their momentum.
+        let mut bodies = resting_bodies(3);
+        settle_moving_under(&mut bodies, &[0.01; 3], &[(0, 1)], DVec3::ZERO);
+        assert!(bodies.iter().all(|b| !b.asleep));
     }
 }
