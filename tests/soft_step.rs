@@ -37,6 +37,27 @@ fn boxes(stack: usize, settings: Settings) -> World {
     tumble::scene::generate::stack(stack, settings)
 }
 
+/// A world of `bodies` on the one box `shape`, without constraints.
+fn box_world(shape: &Shape, bodies: Vec<RigidBody>, settings: Settings) -> World {
+    World::new(
+        vec![shape.clone()],
+        vec!["box".into()],
+        bodies,
+        vec![],
+        settings,
+    )
+}
+
+/// tumble's box (6 x 3 x 4) on the ground, `below` of them stacked, and one more dropped flat
+/// from `drop` above the top of the stack.
+fn stack_with_box_above(below: usize, drop: f64, settings: Settings) -> World {
+    let shape = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(6.0, 3.0, 4.0))).unwrap();
+    let at = |y: f64| RigidBody::on_shape(&shape, 0, 1.0, false, DVec3::Y * y, DQuat::IDENTITY);
+    let mut bodies: Vec<RigidBody> = (0..below).map(|k| at(3.0 + 6.0 * k as f64)).collect();
+    bodies.push(at(6.0 * below as f64 + 3.0 + drop));
+    box_world(&shape, bodies, settings)
+}
+
 /// Settles `world` for 3 s, then returns how far any body moves from there over 10 s.
 fn drift_after_settling(world: &mut World, sunk_bound: f64) -> f64 {
     let dt = world.settings.time_step;
@@ -109,13 +130,7 @@ fn a_stack_of_boxes_turned_against_each_other_does_not_creep() {
             sleep: false,
             ..settling(dt)
         };
-        let mut world = World::new(
-            vec![shape.clone()],
-            vec!["box".into()],
-            bodies,
-            vec![],
-            settings,
-        );
+        let mut world = box_world(&shape, bodies, settings);
         let drift = drift_after_settling(&mut world, 0.05);
         assert!(drift < 5e-3, "dt {dt}: the turned stack moved {drift}");
     }
@@ -406,18 +421,8 @@ fn a_box_dropped_on_a_resting_box_bounces_as_off_a_support() {
 fn a_box_dropped_on_resting_boxes_bounces_as_off_a_rigid_support() {
     let cases = [(1, 1.0), (1, 0.5), (2, 1.0), (2, 0.5)];
     for ((below, e), friction) in cases.into_iter().flat_map(|c| [(c, 0.0), (c, 0.5)]) {
-        let shape = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(6.0, 3.0, 4.0))).unwrap();
-        let at = |y: f64| RigidBody::on_shape(&shape, 0, 1.0, false, DVec3::Y * y, DQuat::IDENTITY);
-        let mut bodies: Vec<RigidBody> = (0..below).map(|k| at(3.0 + 6.0 * k as f64)).collect();
-        bodies.push(at(6.0 * below as f64 + 27.0));
-        let world = World::new(
-            vec![shape.clone()],
-            vec!["box".into()],
-            bodies,
-            vec![],
-            dropping(e, friction),
-        );
-        let (ratio, moved) = bounce_off(world, below);
+        let world = stack_with_box_above(below, 24.0, dropping(e, friction));
+        let (ratio, moved, _) = bounce_off(world, below);
         let least = if below == 1 { 0.97 } else { 0.9 };
         // (The boxes below are pressed into their soft contacts by the impact, a few hundredths.)
         assert!(
@@ -437,30 +442,9 @@ fn a_box_dropped_on_resting_boxes_bounces_as_off_a_rigid_support() {
 #[test]
 fn a_box_dropped_flat_on_a_stack_leaves_without_turning() {
     for (below, least) in [(1, 0.97), (2, 0.97), (3, 0.9)] {
-        let shape = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(6.0, 3.0, 4.0))).unwrap();
-        let at = |y: f64| RigidBody::on_shape(&shape, 0, 1.0, false, DVec3::Y * y, DQuat::IDENTITY);
-        let mut bodies: Vec<RigidBody> = (0..below).map(|k| at(3.0 + 6.0 * k as f64)).collect();
-        bodies.push(at(6.0 * below as f64 + 13.0));
-        let shapes = vec![shape.clone()];
-        let mut world = World::new(
-            shapes,
-            vec!["box".into()],
-            bodies,
-            vec![],
-            dropping(1.0, 0.5),
-        );
-        let mut spin: f64 = 0.0;
-        let (mut lowest, mut apex) = (f64::INFINITY, f64::NEG_INFINITY);
-        for _ in 0..250 {
-            world.step();
-            let top = &world.bodies[below];
-            spin = spin.max(top.angular_velocity.length());
-            lowest = lowest.min(top.position.y);
-            apex = apex.max(top.position.y);
-        }
-        let ratio = (apex - lowest) / (6.0 * below as f64 + 13.0 - lowest);
+        let world = stack_with_box_above(below, 10.0, dropping(1.0, 0.5));
+        let (ratio, _, spin) = bounce_off(world, below);
         assert!(spin < 1e-9, "{below} below: turned at {spin} rad/s");
-        // (The apex over the 5 s is the first bounce's: the box lands again before 5 s.)
         assert!(
             ratio > least && ratio < 1.02,
             "{below} below: back up to {ratio} of the drop"
@@ -524,7 +508,7 @@ fn a_box_dropped_on_a_box_hung_by_rods_or_ropes_bounces_as_off_a_rigid_support()
             constraints,
             dropping(e, friction),
         );
-        let (ratio, moved) = bounce_off(world, 3);
+        let (ratio, moved, _) = bounce_off(world, 3);
         assert!(
             ratio > least * e * e && ratio < 1.02 * e * e && moved < 0.02,
             "lower bound {lower}, e = {e}, friction {friction}: back up to {ratio} of the drop, \
@@ -543,13 +527,16 @@ fn dropping(e: f64, friction: f64) -> Settings {
 }
 
 /// Drops body `top` (the last) onto the bodies below it: the height of its first bounce as a
-/// share of its fall, and how far up or down any other body moved meanwhile.
-fn bounce_off(mut world: World, top: usize) -> (f64, f64) {
+/// share of its fall, how far up or down any other body moved meanwhile, and the fastest it
+/// turned (rad/s) until that bounce's apex.
+fn bounce_off(mut world: World, top: usize) -> (f64, f64, f64) {
     let start: Vec<DVec3> = world.bodies.iter().map(|b| b.position).collect();
     let (mut lowest, mut apex, mut moved) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
+    let mut spin: f64 = 0.0;
     for _ in 0..400 {
         world.step();
         let b = &world.bodies[top];
+        spin = spin.max(b.angular_velocity.length());
         lowest = lowest.min(b.position.y);
         if b.linear_velocity.y > 0.0 {
             apex = apex.max(b.position.y);
@@ -560,7 +547,7 @@ fn bounce_off(mut world: World, top: usize) -> (f64, f64) {
             moved = moved.max((world.bodies[k].position.y - p.y).abs());
         }
     }
-    ((apex - lowest) / (start[top].y - lowest), moved)
+    ((apex - lowest) / (start[top].y - lowest), moved, spin)
 }
 
 #[test]
@@ -1540,13 +1527,7 @@ fn a_body_in_free_flight_never_sleeps() {
         gravity: DVec3::new(0.0, -g, 0.0),
         ..accurate(0.02)
     };
-    let mut world = World::new(
-        vec![shape],
-        vec!["box".into()],
-        vec![body],
-        vec![],
-        settings,
-    );
+    let mut world = box_world(&shape, vec![body], settings);
     let steps = 500;
     for _ in 0..steps {
         world.step();
@@ -1563,54 +1544,40 @@ fn a_body_in_free_flight_never_sleeps() {
 
 /// Without gravity a body at rest stays at rest: touching nothing, it sleeps after the time to
 /// sleep and stays where it was (stop 72's free-flight rule kept it awake for ever), while one
-/// drifting at 1 unit/s moves on at that speed, awake.
+/// drifting at 1 unit/s, or at 0.01 (a fifth of the sleep speed), moves on at its speed, awake.
 #[test]
 fn a_weightless_body_at_rest_sleeps_and_a_drifting_one_does_not() {
     use tumble::sim::soft_step::sleep::TIME_TO_SLEEP;
     let shape = Shape::from_tet_mesh(&assets::cuboid(DVec3::new(6.0, 3.0, 4.0))).unwrap();
-    let at = |x: f64| {
-        RigidBody::on_shape(
-            &shape,
-            0,
-            1.0,
-            false,
-            DVec3::new(x, 10.0, 0.0),
-            DQuat::IDENTITY,
-        )
-    };
-    let (resting, mut drifting) = (at(0.0), at(50.0));
-    drifting.linear_velocity = DVec3::X;
+    let speeds = [0.0, 1.0, 0.01];
+    let bodies = (speeds.iter().enumerate())
+        .map(|(k, &v)| {
+            let p = DVec3::new(50.0 * k as f64, 10.0, 0.0);
+            let mut b = RigidBody::on_shape(&shape, 0, 1.0, false, p, DQuat::IDENTITY);
+            b.linear_velocity = DVec3::X * v;
+            b
+        })
+        .collect();
     let settings = Settings {
         gravity: DVec3::ZERO,
         ..accurate(0.02)
     };
-    let bodies = vec![resting, drifting];
-    let mut world = World::new(
-        vec![shape.clone()],
-        vec!["box".into()],
-        bodies,
-        vec![],
-        settings,
-    );
+    let mut world = box_world(&shape, bodies, settings);
     let steps = 250;
     for _ in 0..steps {
         world.step();
     }
-    let (resting, drifting) = (&world.bodies[0], &world.bodies[1]);
-    assert!(
-        resting.asleep,
-        "the resting box is awake at {} s",
-        world.time
-    );
-    assert_eq!(resting.position, DVec3::new(0.0, 10.0, 0.0));
-    assert!(!drifting.asleep);
     let t = steps as f64 * 0.02;
-    assert!(
-        (drifting.position.x - (50.0 + t)).abs() < 1e-9,
-        "{}",
-        drifting.position
-    );
     assert!(TIME_TO_SLEEP < t);
+    let resting = &world.bodies[0];
+    assert!(resting.asleep, "the resting box is awake at {t} s");
+    assert_eq!(resting.position, DVec3::new(0.0, 10.0, 0.0));
+    for (k, &v) in speeds.iter().enumerate().skip(1) {
+        let b = &world.bodies[k];
+        assert!(!b.asleep, "the box drifting at {v} slept");
+        let x = 50.0 * k as f64 + v * t;
+        assert!((b.position.x - x).abs() < 1e-9, "{v}: {}", b.position);
+    }
 }
 
 /// An octahedron standing upright on one vertex and spinning about the vertical: the ground

@@ -198,7 +198,8 @@ pub fn apply(
 /// the points' order; point after point ([`restitute`]) where there is one, or the block cannot
 /// be solved. Point after point, the first of four equally deep points took more than its share
 /// and a box dropped flat onto a stack of two left turning at 2 degrees a second (40 degrees
-/// within 5 s of bounces at e = 1). Returns the largest change of a point's normal velocity.
+/// within 5 s of bounces at e = 1). Returns the largest change a point's impulse made to its own
+/// normal velocity.
 fn restitute_manifold(
     c: &ContactConstraint,
     (points, bounces): (&mut [ContactPoint], &[bool]),
@@ -236,7 +237,8 @@ fn restitute_manifold(
 /// bounce velocity, or 0 for a support), one of the two at its bound. With `x = r - lo`:
 /// `x >= 0`, `w = K x + q >= 0`, `x_i w_i = 0`, `q = v - t + K (lo - r_held)`; the rows given
 /// [`normal_block::COMPLIANCE`] so that a flat face's `K` is definite. None where the block
-/// cannot be solved (nothing applied then); else the largest change of a normal velocity.
+/// cannot be solved (nothing applied then); else the largest change a point's impulse made to
+/// its own normal velocity, as [`restitute`] measures it.
 #[inline(always)]
 fn restitute_block<const N: usize>(
     c: &ContactConstraint,
@@ -274,12 +276,8 @@ fn restitute_block<const N: usize>(
     let mut change: f64 = 0.0;
     for i in 0..N {
         let p = &mut points[rows[i]];
-        let delta = x[i] + lower[i] - p.restitution_impulse;
-        p.restitution_impulse = x[i] + lower[i];
-        directions[i].apply(n, delta, b1, b2);
-        if p.normal_mass > 0.0 {
-            change = change.max((delta / p.normal_mass).abs());
-        }
+        let taken = take_restitution(p, (&directions[i], n), x[i] + lower[i], (b1, b2));
+        change = change.max(taken);
     }
     Some(change)
 }
@@ -312,8 +310,21 @@ fn restitute(
         // Adds to what it held, takes nothing back.
         false => (p.restitution_impulse - p.normal_mass * vn).max(0.0),
     };
-    let delta = added - p.restitution_impulse;
-    p.restitution_impulse = added;
+    take_restitution(p, (&row, n), added, (b1, b2))
+}
+
+/// Point `p` (its normal row `row` along `n`) takes the restitution impulse `impulse`: the
+/// change is applied, and the change it makes to the point's own normal velocity returned
+/// (`|delta| K_ii`, a pass's measure of progress).
+#[inline(always)]
+fn take_restitution(
+    p: &mut ContactPoint,
+    (row, n): (&Direction, DVec3),
+    impulse: f64,
+    (b1, b2): (&mut SolverBody, &mut SolverBody),
+) -> f64 {
+    let delta = impulse - p.restitution_impulse;
+    p.restitution_impulse = impulse;
     row.apply(n, delta, b1, b2);
     match p.normal_mass > 0.0 {
         true => (delta / p.normal_mass).abs(),
