@@ -366,8 +366,8 @@ fn large_steps_tunnel_and_substeps_catch_it() {
 #[test]
 fn far_away_bodies_neither_hang_nor_panic() {
     // Grid cells far beyond the i64 range once overflowed `hi - lo` (an almost endless loop over
-    // cells in release). Bodies at 1e15 and 1e300, a box 2e20 wide (more cells than i64 holds), and others
-    // near the origin, for both broad phases.
+    // cells in release). Bodies at 1e15 and 1e300, a box 2e20 wide (more cells than i64 holds),
+    // and others near the origin, for both broad phases.
     for broad_phase in [
         tumble::sim::settings::BroadPhase::Grid,
         tumble::sim::settings::BroadPhase::AllPairs,
