@@ -53,9 +53,9 @@ pub struct SettingsArgs {
     /// Never put resting islands to sleep (soft-step solver).
     #[arg(long)]
     pub no_sleep: bool,
-    /// Contacts act on the whole contact patch instead of at one deepest point: against the
-    /// ground at the patch's point nearest under the centre of mass, between bodies at the
-    /// centroid of their faces' overlap (coursework solver).
+    /// Contacts act on the whole contact patch instead of at one deepest point: at the patch's
+    /// point nearest under the centre of mass of the body resting there, on the ground or on
+    /// another body (coursework solver).
     #[arg(long)]
     pub contact_patches: bool,
     /// Substeps per step (the soft step takes more in a step that begins with contacts touching

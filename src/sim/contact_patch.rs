@@ -18,6 +18,20 @@ pub fn ground_patch_point(com: DVec3, corners: &[DVec3]) -> DVec3 {
     DVec3::new(at.x, height, at.y)
 }
 
+/// The point of the patch spanned by `points` (a contact's touching points, in a plane across
+/// the unit `normal`; one at least) nearest to the centre of mass `com` seen along `normal`:
+/// [`ground_patch_point`] for a patch in any plane, where a body rests on another. Its height
+/// along `normal` is the points' mean.
+pub fn patch_point_under(com: DVec3, points: &[DVec3], normal: DVec3) -> DVec3 {
+    let (t1, t2) = normal.any_orthonormal_pair();
+    let height = points.iter().map(|p| p.dot(normal)).sum::<f64>() / points.len() as f64;
+    let flat: Vec<DVec2> = (points.iter())
+        .map(|p| DVec2::new(p.dot(t1), p.dot(t2)))
+        .collect();
+    let at = nearest_in_hull(&convex_hull(flat), DVec2::new(com.dot(t1), com.dot(t2)));
+    at.x * t1 + at.y * t2 + height * normal
+}
+
 /// The convex hull of `points` (one at least), counter-clockwise, collinear points dropped
 /// (Andrew's monotone chain: A. M. Andrew, "Another efficient algorithm for convex hulls in two
 /// dimensions", 1979). One point or two where all are one or on a line.

@@ -120,9 +120,9 @@ pub struct Settings {
     /// Contacts whose normal closing speed is below this get `e = 0` (0 = off).
     pub restitution_threshold: f64,
     /// Contacts act on the whole contact patch rather than at one deepest point, so that a body
-    /// resting on a face gets no spurious torque: against the ground at the patch's point
-    /// nearest under the centre of mass, between bodies at the centroid of the faces' overlap
-    /// (see [`crate::sim::narrow_phase::body_contact_patch`]).
+    /// resting on a face gets no spurious torque: at the patch's point nearest under the centre
+    /// of mass of the body resting there (on the ground, on a fixed body, or on top under
+    /// gravity; see [`crate::sim::narrow_phase::body_contact_patch`]).
     pub contact_patches: bool,
     /// Substeps per step, each of `time_step / substeps` (Macklin et al. 2019). The coursework
     /// solver repeats its whole update; the soft-step solver detects contacts once per step and
@@ -169,6 +169,12 @@ impl Default for Settings {
 }
 
 impl Settings {
+    /// The gravity under which contact patches are taken ([`Settings::contact_patches`]), or
+    /// `None` where contacts act at one point.
+    pub fn patch_gravity(&self) -> Option<DVec3> {
+        self.contact_patches.then_some(self.gravity)
+    }
+
     /// The `--accurate` preset: tumble's soft-step solver, 4 substeps (more in a step with
     /// contacts at dt over 0.02, see [`Settings::substeps`]; fewer at dt under 0.01, see
     /// [`Settings::full_substeps_from`]), the angular-momentum

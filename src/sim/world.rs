@@ -326,7 +326,7 @@ impl World {
         let (bodies, shapes) = (&self.bodies, &self.shapes);
         let mut broad = self.broad_phase.clone();
         let mut queue = broad.candidate_pairs((bodies, shapes), 0.0, &mut Vec::new(), &mut 0);
-        let patches = self.settings.contact_patches;
+        let patches = self.settings.patch_gravity();
         let mut out = Vec::new();
         while let Some(((i, j), _)) = queue.pop() {
             if broad.overlap(i, j)
@@ -338,7 +338,7 @@ impl World {
         for (i, body) in bodies.iter().enumerate() {
             if body.is_dynamic()
                 && broad.boxes()[i].min.y <= 0.0
-                && let Some(c) = ground_contact(body, &shapes[body.shape], patches)
+                && let Some(c) = ground_contact(body, &shapes[body.shape], patches.is_some())
             {
                 out.push((i, None, c));
             }

@@ -564,8 +564,8 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
         .on_hover_text("Islands resting for half a second sleep until touched (soft-step solver)");
     ui.checkbox(contact_patches, "contact patches")
         .on_hover_text(
-            "Contacts act on the whole contact patch, not at one deepest point: against the \
-             ground under the centre of mass, between bodies at the overlap's centroid \
+            "Contacts act on the whole contact patch, not at one deepest point: under the \
+             centre of mass of the body resting there, on the ground or on another body \
              (coursework solver)",
         );
     enum_choice(ui, "rotation integrator", rotation_integrator);

@@ -15,6 +15,7 @@ use crate::sim::settings::BroadPhase as BroadPhaseKind;
 use crate::sim::shape::Shape;
 use crate::sim::stats::{SampledStage, Stage, StepStats, Stopwatch};
 use crate::sim::step_context::StepContext;
+use glam::DVec3;
 use rayon::prelude::*;
 
 /// What the body-contact stage keeps from one step to the next.
@@ -59,25 +60,24 @@ pub struct Bodies<'a> {
 }
 
 /// Exact contact between bodies `i` and `j` at their current poses: disjoint oriented boxes
-/// first (cheap and exact), then the hulls.
+/// first (cheap and exact), then the hulls; with `patches` (the gravity they are taken under,
+/// [`crate::Settings::patch_gravity`]) acting at the contact patch.
 pub fn contact_between(
     bodies: &[RigidBody],
     shapes: &[Shape],
     i: usize,
     j: usize,
-    patches: bool,
+    patches: Option<DVec3>,
 ) -> Detection {
     let (a, b) = (&bodies[i], &bodies[j]);
     let (shape_a, shape_b) = (&shapes[a.shape], &shapes[b.shape]);
     if !oriented_boxes_overlap(a, shape_a, b, shape_b) {
         return Detection::apart();
     }
-    let detect = if patches {
-        body_contact_patch
-    } else {
-        body_contact
-    };
-    detect(a, shape_a, b, shape_b)
+    match patches {
+        Some(gravity) => body_contact_patch((a, shape_a), (b, shape_b), gravity),
+        None => body_contact(a, shape_a, b, shape_b),
+    }
 }
 
 fn apply_contact(
@@ -171,7 +171,7 @@ fn all_pairs(
 ) {
     let Bodies { bodies, shapes } = world;
     let n = bodies.len();
-    let patches = ctx.settings.contact_patches;
+    let patches = ctx.settings.patch_gravity();
     let mut narrow = SampledStage::new(Stage::NarrowPhase);
     let mut resolution = SampledStage::new(Stage::ContactResolution);
     for i in 0..n {
@@ -213,7 +213,7 @@ fn precompute(
     let detect = |&(i, j): &(u32, u32)| {
         let (i, j) = (i as usize, j as usize);
         (broad.overlap(i, j) && flags_may_collide(flags[i], flags[j]))
-            .then(|| contact_between(bodies, shapes, i, j, ctx.settings.contact_patches))
+            .then(|| contact_between(bodies, shapes, i, j, ctx.settings.patch_gravity()))
     };
     parallel::extend_map(out, candidates.par_iter(), 16, detect);
 }
@@ -278,7 +278,7 @@ fn resolve_in_order(
                 if !broad.overlap(i, j) || !flags_may_collide(flags[i], flags[j]) {
                     continue;
                 }
-                let patches = ctx.settings.contact_patches;
+                let patches = ctx.settings.patch_gravity();
                 let d = watch.sample(&mut narrow, || {
                     contact_between(bodies, shapes, i, j, patches)
                 });
