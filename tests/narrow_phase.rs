@@ -466,6 +466,41 @@ fn a_leaning_tetrahedron_resting_on_a_box_stays_still_with_patches() {
     }
 }
 
+/// Between two bodies the patch pushes under the centre of mass of the one resting on the
+/// other, whichever order they come in: the body that moves, on a fixed one, and the one on top,
+/// where both move. The leaning tetrahedron, whose centre of mass is 0.59 units off its base's
+/// centroid (where the patch pushed until stop 73), rests off the middle of a box.
+#[test]
+fn the_patch_between_bodies_pushes_under_the_resting_bodys_centre() {
+    let tet = leaning_tetrahedron();
+    let block = shape(&assets::cuboid(DVec3::new(6.0, 3.0, 4.0)));
+    let lowest = (tet.rest_vertices.iter())
+        .map(|v| v.y)
+        .fold(f64::INFINITY, f64::min);
+    let gravity = DVec3::new(0.0, -9.8, 0.0);
+    for fixed in [true, false] {
+        let under = RigidBody::on_shape(&block, 1, 1.0, fixed, DVec3::Y * 3.0, DQuat::IDENTITY);
+        // Sunk a hair into the box, so that the two touch.
+        let com = DVec3::new(1.5, 6.0 - lowest - 1e-3, -1.0);
+        let on = RigidBody::on_shape(&tet, 0, 1.0, false, com, DQuat::IDENTITY);
+        let orders = [
+            ((&on, &tet), (&under, &block)),
+            ((&under, &block), (&on, &tet)),
+        ];
+        for (k, (first, second)) in orders.into_iter().enumerate() {
+            let c = body_contact_patch(first, second, gravity)
+                .contact
+                .expect("touching");
+            let off = (c.point2 - com).with_y(0.0).length();
+            assert!(
+                off < 1e-9,
+                "fixed {fixed}, order {k}: {off} off, at {}",
+                c.point2
+            );
+        }
+    }
+}
+
 /// Boxes and thin plates built exactly flush on each other stay stacked with contact patches,
 /// neither turning nor sliding nor gaining energy, at restitution 0 and 1: on such faces EPA's
 /// normal leans sideways and parry's manifold normal was wrong outright (the top box was pushed

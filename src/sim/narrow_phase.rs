@@ -423,7 +423,8 @@ const SAT_MOST_CORNERS: usize = 24;
 /// either side, left out), where the manifold's normal is `normal`: the patch's point nearest
 /// under the centre of mass of the body that rests there ([`patch_point_under`]): the body that
 /// moves where the other is fixed, else the one on top under `gravity`. Where neither rests
-/// (both move and the normal lies across gravity, or there is none), the patch's centroid. Its
+/// (both move and the normal lies further than [`RESTING_NORMAL_COSINE`] from gravity, or there
+/// is none), the patch's centroid. Its
 /// centroid served for every pair until stop 73: a body resting on a face whose centroid is not
 /// under its centre of mass rocked (the course's tetrahedron on a fixed `box_tri` gained 15 % of
 /// its energy in 10 s at dt 0.02; found by review).
@@ -447,17 +448,23 @@ fn patch_point(
     if chosen.is_empty() || !mean.is_finite() {
         return None;
     }
-    let down = normal.dot(gravity);
+    // How far the normal points down (from body 1 to body 2 below it), or up.
+    let down = normal.dot(gravity.normalize_or_zero());
     let resting = match (body1.is_dynamic(), body2.is_dynamic()) {
         (true, false) => Some(body1),
         (false, true) => Some(body2),
-        _ if down > 0.0 => Some(body1),
-        _ if down < 0.0 => Some(body2),
+        _ if down > RESTING_NORMAL_COSINE => Some(body1),
+        _ if down < -RESTING_NORMAL_COSINE => Some(body2),
         _ => None,
     };
     let point = resting.map_or(mean, |b| patch_point_under(b.position, &chosen, normal));
     point.is_finite().then_some(point)
 }
+
+/// Between two bodies that move, one rests on the other where the contact's normal lies within
+/// 60 degrees of gravity (the cosine of their angle above this): closer to across gravity, a
+/// rounding of the normal's sign would pick one body in one step and the other in the next.
+const RESTING_NORMAL_COSINE: f64 = 0.5;
 
 /// Contact with the ground plane y = 0, whose body is immovable and plays body 2: depth is minus
 /// the lowest vertex's height, normal `(0,-1,0)`, point the lowest vertex (first one on ties).

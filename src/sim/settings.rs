@@ -122,7 +122,8 @@ pub struct Settings {
     /// Contacts act on the whole contact patch rather than at one deepest point, so that a body
     /// resting on a face gets no spurious torque: at the patch's point nearest under the centre
     /// of mass of the body resting there (on the ground, on a fixed body, or on top under
-    /// gravity; see [`crate::sim::narrow_phase::body_contact_patch`]).
+    /// gravity; the centroid between moving bodies side by side; see
+    /// [`crate::sim::narrow_phase::body_contact_patch`]).
     pub contact_patches: bool,
     /// Substeps per step, each of `time_step / substeps` (Macklin et al. 2019). The coursework
     /// solver repeats its whole update; the soft-step solver detects contacts once per step and
