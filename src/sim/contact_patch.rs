@@ -1,9 +1,9 @@
 //! Where a one-point contact acts on a whole contact patch (`--contact-patches`, an opt-in of the
 //! coursework's solver): the patch's point nearest below the resting body's centre of mass, on
 //! the ground or on another body, so that a body resting on a face is pushed straight up
-//! through its centre of mass and stays still. The patch's centroid did that only for faces centred under it: a
-//! tetrahedron resting on a face rocked and gained energy there (2.2 times in 10 s at dt 0.02
-//! and restitution 1, the course's `tetrahedron.mesh`; found by review).
+//! through its centre of mass and stays still. The patch's centroid did that only for faces
+//! centred under it: a tetrahedron resting on a face rocked and gained energy there (2.2 times
+//! in 10 s at dt 0.02 and restitution 1, the course's `tetrahedron.mesh`; found by review).
 
 use glam::{DVec2, DVec3};
 
