@@ -408,6 +408,17 @@ fn leaning_tetrahedron() -> tumble::Shape {
     shape(&tumble::io::parse_medit(std::path::Path::new("leaning.mesh"), text).unwrap())
 }
 
+/// The leaning tetrahedron, tumble's box (6 x 3 x 4) and the height of the tetrahedron's base
+/// below its centre of mass (minus).
+fn leaning_tetrahedron_and_box() -> (tumble::Shape, tumble::Shape, f64) {
+    let tet = leaning_tetrahedron();
+    let block = shape(&assets::cuboid(DVec3::new(6.0, 3.0, 4.0)));
+    let lowest = (tet.rest_vertices.iter())
+        .map(|v| v.y)
+        .fold(f64::INFINITY, f64::min);
+    (tet, block, lowest)
+}
+
 /// The leaning tetrahedron resting on its base on a box, fixed or itself resting on the
 /// ground, its centre of mass over the box's centre: with contact patches the box pushes up
 /// through the tetrahedron's centre of mass, and at restitution 1 neither slides nor turns nor
@@ -416,11 +427,7 @@ fn leaning_tetrahedron() -> tumble::Shape {
 /// centroid, where the patch pushed until stop 73, the tetrahedron rocked.
 #[test]
 fn a_leaning_tetrahedron_resting_on_a_box_stays_still_with_patches() {
-    let tet = leaning_tetrahedron();
-    let block = shape(&assets::cuboid(DVec3::new(6.0, 3.0, 4.0)));
-    let lowest = (tet.rest_vertices.iter())
-        .map(|v| v.y)
-        .fold(f64::INFINITY, f64::min);
+    let (tet, block, lowest) = leaning_tetrahedron_and_box();
     for fixed in [true, false] {
         let under = RigidBody::on_shape(&block, 1, 1.0, fixed, DVec3::Y * 3.0, DQuat::IDENTITY);
         let at = DVec3::new(0.0, 6.0 - lowest, 0.0);
@@ -472,11 +479,7 @@ fn a_leaning_tetrahedron_resting_on_a_box_stays_still_with_patches() {
 /// centroid (where the patch pushed until stop 73), rests off the middle of a box.
 #[test]
 fn the_patch_between_bodies_pushes_under_the_resting_bodys_centre() {
-    let tet = leaning_tetrahedron();
-    let block = shape(&assets::cuboid(DVec3::new(6.0, 3.0, 4.0)));
-    let lowest = (tet.rest_vertices.iter())
-        .map(|v| v.y)
-        .fold(f64::INFINITY, f64::min);
+    let (tet, block, lowest) = leaning_tetrahedron_and_box();
     let gravity = DVec3::new(0.0, -9.8, 0.0);
     for fixed in [true, false] {
         let under = RigidBody::on_shape(&block, 1, 1.0, fixed, DVec3::Y * 3.0, DQuat::IDENTITY);
