@@ -206,9 +206,7 @@ impl Settings {
     /// Brings values a user may have typed into a range the step can work with.
     pub fn sanitized(&self) -> Self {
         let mut s = self.clone();
-        if !s.time_step.is_finite() || s.time_step < 0.0 {
-            s.time_step = 0.0;
-        }
+        s.time_step = step_length(s.time_step);
         s.restitution = if s.restitution.is_finite() {
             s.restitution.clamp(0.0, 1.0)
         } else {
@@ -254,5 +252,14 @@ mod tests {
         check::<BroadPhase>();
         check::<ConstraintSchedule>();
         check::<RotationIntegrator>();
+    }
+}
+
+/// The time a step of `time_step` takes: none where it is not finite or is negative.
+pub fn step_length(time_step: f64) -> f64 {
+    if time_step.is_finite() && time_step >= 0.0 {
+        time_step
+    } else {
+        0.0
     }
 }

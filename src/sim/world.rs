@@ -137,7 +137,7 @@ impl World {
     /// finite or is negative counts as none, as the step itself takes it ([`Settings`]'s
     /// sanitizing): the time holds, and goes on from there once the step is valid again.
     pub fn count_step(&mut self, dt: f64) {
-        let dt = if dt.is_finite() && dt >= 0.0 { dt } else { 0.0 };
+        let dt = super::settings::step_length(dt);
         self.time = self.clock.advance(self.time, dt);
         self.step_count += 1;
     }
