@@ -10,20 +10,29 @@ use glam::{DVec2, DVec3};
 /// The point on the ground patch spanned by `corners` (the hull's corners at or below the
 /// ground; one at least) nearest to the centre of mass `com` seen from above: `com`'s own
 /// place where the patch lies under it, else the nearest point of the patch's rim. Its height
-/// is the corners' mean height.
+/// is the corners' mean height. ([`point_nearest_under`] in the world's axes: x and z across,
+/// y up, so each coordinate is read as it is.)
 pub fn ground_patch_point(com: DVec3, corners: &[DVec3]) -> DVec3 {
-    let height = corners.iter().map(|c| c.y).sum::<f64>() / corners.len() as f64;
-    let flat: Vec<DVec2> = corners.iter().map(|c| DVec2::new(c.x, c.z)).collect();
-    let at = nearest_in_hull(&convex_hull(flat), DVec2::new(com.x, com.z));
-    DVec3::new(at.x, height, at.y)
+    point_nearest_under((DVec3::X, DVec3::Z, DVec3::Y), com, corners)
 }
 
 /// The point of the patch spanned by `points` (a contact's touching points, in a plane across
-/// the unit `normal`; one at least) nearest to the centre of mass `com` seen along `normal`:
-/// [`ground_patch_point`] for a patch in any plane, where a body rests on another. Its height
-/// along `normal` is the points' mean.
+/// the unit `normal`; one at least) nearest to the centre of mass `com` seen along `normal`,
+/// where a body rests on another: [`ground_patch_point`] for a patch in any plane.
 pub fn patch_point_under(com: DVec3, points: &[DVec3], normal: DVec3) -> DVec3 {
     let (t1, t2) = normal.any_orthonormal_pair();
+    point_nearest_under((t1, t2, normal), com, points)
+}
+
+/// The point of the patch spanned by `points` (in a plane across `normal`; one at least)
+/// nearest to `com` seen along `normal`, in the orthonormal frame `(t1, t2, normal)`: `com`'s
+/// own place across the plane where the patch lies under it, else the nearest point of the
+/// patch's rim; its height along `normal` is the points' mean.
+fn point_nearest_under(
+    (t1, t2, normal): (DVec3, DVec3, DVec3),
+    com: DVec3,
+    points: &[DVec3],
+) -> DVec3 {
     let height = points.iter().map(|p| p.dot(normal)).sum::<f64>() / points.len() as f64;
     let flat: Vec<DVec2> = (points.iter())
         .map(|p| DVec2::new(p.dot(t1), p.dot(t2)))
