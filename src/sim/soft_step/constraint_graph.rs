@@ -37,9 +37,15 @@ impl Colours {
         bodies: usize,
         moving: impl Fn(usize) -> bool,
     ) {
+        self.colour_of.clear();
+        if manifolds.is_empty() {
+            // (A chain or a body in flight: no contact, and no per-colour pass to make.)
+            self.runs.clear();
+            self.overflow = false;
+            return;
+        }
         self.used.clear();
         self.used.resize(bodies, 0);
-        self.colour_of.clear();
         let mut counts = [0usize; COLOURS + 1];
         for m in manifolds.iter() {
             let movers = [m.body1, m.body2].map(|i| (i != GROUND && moving(i)).then_some(i));

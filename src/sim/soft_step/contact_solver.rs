@@ -330,6 +330,10 @@ impl ContactCache {
         points: &[ContactPoint],
         bodies: &[crate::sim::body::RigidBody],
     ) {
+        // Nothing collided and nothing kept: nothing to store (a chain, a body in flight).
+        if manifolds.is_empty() && self.pairs.is_empty() {
+            return;
+        }
         let sleeping =
             |(i, j): (usize, usize)| (i != GROUND && bodies[i].asleep) || bodies[j].asleep;
         // Pairs are unique among a step's manifolds, so an unstable sort gives the one order.
@@ -582,6 +586,11 @@ pub fn prepare(
     params: &ContactParams,
     (constraints, points): (&mut Vec<ContactConstraint>, &mut Vec<ContactPoint>),
 ) {
+    if manifolds.is_empty() {
+        constraints.clear();
+        points.clear();
+        return;
+    }
     let ground = bodies.len() - 1;
     let centre = |i: usize| (i != ground).then(|| poses[i].0);
     // A manifold's constraint, and its points written into `run`.

@@ -183,6 +183,9 @@ impl Workspace {
     /// any kick (what [`restitution::bouncing_points`] reads), and again just before the
     /// restitution pass (what its energy rule reads).
     fn record_velocities(&mut self) {
+        if self.points.is_empty() {
+            return;
+        }
         let before = &mut self.before_restitution;
         before.resize(self.bodies.len(), (DVec3::ZERO, DVec3::ZERO));
         for &i in &self.solving {
@@ -204,6 +207,11 @@ impl Workspace {
         (settings, h): (&crate::sim::Settings, f64),
         hold_joints: impl FnMut(&mut [SolverBody], &[bool]),
     ) {
+        // No contact point, no bounce: the pass and its energy rule would find nothing (a
+        // chain, a pendulum, a body in flight).
+        if self.points.is_empty() {
+            return;
+        }
         let rule = restitution::BounceRule {
             restitution: settings.restitution,
             threshold: settings.restitution_threshold,
@@ -1147,6 +1155,7 @@ impl Workspace {
         h: f64,
     ) {
         let (integrator, turns_inertia) = (ctx.settings.rotation_integrator, self.turns_inertia);
+        let contacts = !self.points.is_empty();
         for_each_indexed2(&self.solving, bodies, &mut self.bodies, |i, body, sb| {
             let (p0, q0) = start[i];
             body.linear_velocity = sb.linear_velocity;
@@ -1158,12 +1167,19 @@ impl Workspace {
             if turns_inertia && !body.inertia.is_isotropic() {
                 sb.inverse_inertia = body.world_inverse_inertia();
             }
-            sb.delta_position = body.position - p0;
-            sb.delta_rotation = manifold::delta_rotation(q0, body.orientation);
+            if contacts {
+                sb.delta_position = body.position - p0;
+                sb.delta_rotation = manifold::delta_rotation(q0, body.orientation);
+            }
         });
     }
 
+    /// Each solving body's displacement since the step began, for the contacts' separations
+    /// (none to read without contact points).
     fn update_deltas(&mut self, bodies: &mut [RigidBody], start: &[(DVec3, DQuat)]) {
+        if self.points.is_empty() {
+            return;
+        }
         for_each_indexed2(&self.solving, bodies, &mut self.bodies, |i, body, sb| {
             let (p0, q0) = start[i];
             sb.delta_position = body.position - p0;
