@@ -11,7 +11,7 @@ use glam::{DVec2, DVec3};
 /// ground; one at least) nearest to the centre of mass `com` seen from above: `com`'s own
 /// place where the patch lies under it, else the nearest point of the patch's rim. Its height
 /// is the corners' mean height. ([`point_nearest_under`] in the world's axes: x and z across,
-/// y up, so each coordinate is read as it is.)
+/// y up, so each coordinate is read as it is, up to the sign of a zero.)
 pub fn ground_patch_point(com: DVec3, corners: &[DVec3]) -> DVec3 {
     point_nearest_under((DVec3::X, DVec3::Z, DVec3::Y), com, corners)
 }

@@ -181,7 +181,8 @@ impl Workspace {
 
     /// Each solving body's velocities now into `before_restitution`: as the step begins, before
     /// any kick (what [`restitution::bouncing_points`] reads), and again just before the
-    /// restitution pass (what its energy rule reads).
+    /// restitution pass (what its energy rule reads). Nothing without contact points: neither
+    /// reads them then.
     fn record_velocities(&mut self) {
         if self.points.is_empty() {
             return;
@@ -1135,7 +1136,8 @@ impl Workspace {
     }
 
     /// Poses from the solved velocities (by the world's rotation integrator), and each body's
-    /// displacement since the step began for the contacts' separations.
+    /// displacement since the step began for the contacts' separations (only where the step has
+    /// contact points: nothing reads it otherwise).
     ///
     /// Where the joints or a grab will read it ([`Workspace::turns_inertia`]), each body's world
     /// inverse inertia is turned with it. An impulse applied through the inertia of the step's
@@ -1168,8 +1170,7 @@ impl Workspace {
                 sb.inverse_inertia = body.world_inverse_inertia();
             }
             if contacts {
-                sb.delta_position = body.position - p0;
-                sb.delta_rotation = manifold::delta_rotation(q0, body.orientation);
+                record_displacement(sb, body, (p0, q0));
             }
         });
     }
@@ -1181,11 +1182,16 @@ impl Workspace {
             return;
         }
         for_each_indexed2(&self.solving, bodies, &mut self.bodies, |i, body, sb| {
-            let (p0, q0) = start[i];
-            sb.delta_position = body.position - p0;
-            sb.delta_rotation = manifold::delta_rotation(q0, body.orientation);
+            record_displacement(sb, body, start[i]);
         });
     }
+}
+
+/// The body's displacement from the pose its step began at, which the contact rows add to
+/// their separations (the rows keep the step's start).
+fn record_displacement(sb: &mut SolverBody, body: &RigidBody, (p0, q0): (DVec3, DQuat)) {
+    sb.delta_position = body.position - p0;
+    sb.delta_rotation = manifold::delta_rotation(q0, body.orientation);
 }
 
 #[cfg(test)]
