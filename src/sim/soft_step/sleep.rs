@@ -70,6 +70,9 @@ pub struct Islands {
     /// Sleeping bodies an awake body touches, found by the last [`settle`] (see
     /// [`Islands::touched_sleepers`]).
     touched_sleepers: Vec<usize>,
+    /// The awake bodies' steps ([`awake_bodies`]) and each one's island (its root).
+    awake: Vec<Awake>,
+    roots: Vec<usize>,
 }
 
 impl Islands {
@@ -127,7 +130,8 @@ pub fn settle(
     touching: impl Iterator<Item = (usize, usize)>,
     (dt, gravity): (f64, glam::DVec3),
 ) {
-    let awake = awake_bodies(bodies, radii, start, dt);
+    let mut awake = std::mem::take(&mut islands.awake);
+    awake_bodies(bodies, radii, start, dt, &mut awake);
     islands.reset(bodies.len());
     let (touched, touched_sleepers) = (&mut islands.touched, &mut islands.touched_sleepers);
     let held = &mut islands.held;
@@ -154,7 +158,9 @@ pub fn settle(
     }
     // Each island's mass and twice its kinetic energy (of the speeds above); each body's root
     // found once.
-    let roots: Vec<usize> = (awake.iter()).map(|a| islands.sets.root(a.index)).collect();
+    let mut roots = std::mem::take(&mut islands.roots);
+    roots.clear();
+    roots.extend((awake.iter()).map(|a| islands.sets.root(a.index)));
     for c in constraints {
         for (body, other) in [(c.body1, c.body2), (c.body2, c.body1)] {
             islands.held[body] |= !view[other].is_dynamic();
@@ -202,22 +208,34 @@ pub fn settle(
     islands
         .touched_sleepers
         .retain(|&j| least[sets.root(j)] < TIME_TO_SLEEP);
+    if awake.capacity() <= KEPT_AWAKE_AT_MOST {
+        (islands.awake, islands.roots) = (awake, roots);
+    }
 }
 
-/// The awake bodies' steps, measured from the poses they began at (`start`). One pass over the
-/// bodies, which keeps the awake ones' indices, speeds and masses for the islands: three passes
-/// over 100,000 bodies of 300 bytes took scatter-100000's sleeping from 5-6.5 to 8.8-9.6 ms a
-/// step. A new list each step: kept from step to step with the islands' roots, it saved a small
-/// scene's step about 370 instructions and added its 3.1 MiB to scatter-100000's peak, which the
-/// narrow phase reaches while these lists are not held (207.1 against 204.0 MiB over 287 steps).
+/// The most awake bodies whose lists [`settle`] keeps for the next step. Kept, they save a
+/// small scene's step two allocations (about 390 instructions of the box hung by a corner's
+/// 26,000, 1.5 %, yet its time at dt 0.01 went from 1.02-1.03x Rapier's to 0.97-0.99x in
+/// three interleaved runs); kept at any size, they added their 3.1 MiB to scatter-100000's
+/// peak, which the narrow phase reaches while these lists are not needed (207.1 against
+/// 204.0 MiB over 287 steps). Past this size (128 KiB of them) an allocation is nothing
+/// beside the step.
+const KEPT_AWAKE_AT_MOST: usize = 4096;
+
+/// The awake bodies' steps, measured from the poses they began at (`start`), into `out`. One
+/// pass over the bodies, which keeps the awake ones' indices, speeds and masses for the
+/// islands: three passes over 100,000 bodies of 300 bytes took scatter-100000's sleeping from
+/// 5-6.5 to 8.8-9.6 ms a step.
 fn awake_bodies(
     bodies: &[RigidBody],
     radii: &[f64],
     start: &[(glam::DVec3, glam::DQuat)],
     dt: f64,
-) -> Vec<Awake> {
+    out: &mut Vec<Awake>,
+) {
     let items = bodies.par_iter().zip(start).enumerate();
-    parallel::filter_map(items, 1024, |(i, (b, &(p0, q0)))| {
+    out.clear();
+    parallel::extend_filter_map(out, items, 1024, |(i, (b, &(p0, q0)))| {
         if !b.is_awake() {
             return None;
         }
@@ -233,6 +251,7 @@ fn awake_bodies(
 }
 
 /// An awake body as [`settle`] measured its step.
+#[derive(Debug, Clone, Copy)]
 struct Awake {
     index: usize,
     /// The speed the sleep test weighs (see [`POSITION_SLEEP_FACTOR`]).
