@@ -208,18 +208,19 @@ pub fn settle(
     islands
         .touched_sleepers
         .retain(|&j| least[sets.root(j)] < TIME_TO_SLEEP);
-    if awake.capacity() <= KEPT_AWAKE_AT_MOST {
+    if awake.capacity().max(roots.capacity()) <= KEPT_AWAKE_AT_MOST {
         (islands.awake, islands.roots) = (awake, roots);
     }
 }
 
-/// The most awake bodies whose lists [`settle`] keeps for the next step. Kept, they save a
-/// small scene's step two allocations (about 390 instructions of the box hung by a corner's
-/// 26,000, 1.5 %, yet its time at dt 0.01 went from 1.02-1.03x Rapier's to 0.97-0.99x in
-/// three interleaved runs); kept at any size, they added their 3.1 MiB to scatter-100000's
-/// peak, which the narrow phase reaches while these lists are not needed (207.1 against
-/// 204.0 MiB over 287 steps). Past this size (128 KiB of them) an allocation is nothing
-/// beside the step.
+/// The largest capacity (in bodies) at which [`settle`] keeps its lists for the next step, so
+/// they are kept while a few thousand bodies at most are awake. Kept, they save a small
+/// scene's step two allocations: about 390 instructions of the box hung by a corner's 26,000
+/// (1.5 %), yet at dt 0.01 its time went from 0.88-1.05x Rapier's (above 1.0x in 14 of 15
+/// runs) to 0.83-0.99x (9 runs), each run timing the two interleaved. Kept at any size, they
+/// added their 3.1 MiB to scatter-100000's peak, which the narrow phase reaches while these
+/// lists are not needed (207.1 against 204.0 MiB over 287 steps). Past this size (128 KiB of
+/// them) an allocation is nothing beside the step.
 const KEPT_AWAKE_AT_MOST: usize = 4096;
 
 /// The awake bodies' steps, measured from the poses they began at (`start`), into `out`. One
