@@ -216,7 +216,7 @@ pub fn settle(
 /// The largest capacity (in bodies) at which [`settle`] keeps its lists for the next step, so
 /// they are kept while a few thousand bodies at most are awake. Kept, they save a small
 /// scene's step two allocations: about 390 instructions of the box hung by a corner's 26,000
-/// (1.5 %), yet at dt 0.01 its time went from 0.88-1.05x Rapier's (above 1.0x in 14 of 15
+/// (1.5 %), yet at dt 0.01 its time went from 0.88-1.04x Rapier's (above 1.0x in 14 of 15
 /// runs) to 0.83-0.99x (9 runs), each run timing the two interleaved. Kept at any size, they
 /// added their 3.1 MiB to scatter-100000's peak, which the narrow phase reaches while these
 /// lists are not needed (207.1 against 204.0 MiB over 287 steps). Past this size (128 KiB of
