@@ -213,14 +213,11 @@ pub fn settle(
     }
 }
 
-/// The largest capacity (in bodies) at which [`settle`] keeps its lists for the next step, so
-/// they are kept while a few thousand bodies at most are awake. Kept, they save a small
-/// scene's step two allocations: about 390 instructions of the box hung by a corner's 26,000
-/// (1.5 %), yet at dt 0.01 its time went from 0.88-1.04x Rapier's (above 1.0x in 14 of 15
-/// runs) to 0.83-0.99x (9 runs), each run timing the two interleaved. Kept at any size, they
-/// added their 3.1 MiB to scatter-100000's peak, which the narrow phase reaches while these
-/// lists are not needed (207.1 against 204.0 MiB over 287 steps). Past this size (128 KiB of
-/// them) an allocation is nothing beside the step.
+/// The largest capacity (in bodies) at which [`settle`] keeps its lists for the next step. Kept,
+/// they spare a small scene's step two allocations (measurably faster: the box hung by a corner,
+/// docs/accuracy.md "Stop 74"); kept at any size, they would add 3.1 MiB to scatter-100000's
+/// peak, which the narrow phase reaches while they are not needed. Past 4,096 bodies (128 KiB
+/// of lists) an allocation is nothing beside the step.
 const KEPT_AWAKE_AT_MOST: usize = 4096;
 
 /// The awake bodies' steps, measured from the poses they began at (`start`), into `out`. One
