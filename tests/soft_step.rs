@@ -1229,7 +1229,7 @@ fn a_cylinder_turning_onto_the_ground_does_not_sink_into_it() {
 /// substeps, one soft and one relax pass each, and leave the stack moving up: it hops, and
 /// dropped from 14 units, at 15 units/s, the top box comes to rest beside the stack; from 20 it
 /// came to rest on it, as this test had it until stop 57, or beside it with the manifolds'
-/// points in another order. Rapier topples the stack from 14 and 20; see docs/accuracy.md,
+/// points in another order. Rapier topples the stack from 14 and 20; see docs/accuracy-log.md,
 /// "Stop 58".)
 #[test]
 fn a_resting_stack_sleeps_and_a_dropped_box_wakes_it() {

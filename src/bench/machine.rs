@@ -2,7 +2,7 @@
 //! CPUs the run could use, and the first CPU's caches. Run times are only comparable on one
 //! machine, and the scale bench's growth with N likely turns on what fits in the caches (a run
 //! on a machine with 32 MiB of L3 grew 17.1x from scatter-10000 to scatter-100000 where another
-//! machine's grew 11.3x; docs/scale.md), so the reports name the machine.
+//! machine's grew 11.3x; docs/scale-log.md, "Stop 58's run"), so the reports name the machine.
 
 use serde::Serialize;
 use std::path::Path;

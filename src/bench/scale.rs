@@ -157,7 +157,7 @@ pub struct Measurement {
     /// Median over the first `--steps` measured steps (a pile is watched on after them).
     pub median_ms_per_step: f64,
     /// Mean over the same steps: their run time a step. Where a scene's steps are of very
-    /// different lengths (free fall, then landing) the median can sit far from it (docs/scale.md,
+    /// different lengths (free fall, then landing) the median can sit far from it (docs/scale-log.md,
     /// "Stop 71").
     pub mean_ms_per_step: f64,
     /// Median over the last fifth of the measured steps, where sleeping shows.

@@ -95,7 +95,7 @@ impl BroadPhase {
     /// (i < j, sorted) whose proxies overlap and whose flags may collide, queued in order. One
     /// pass over the bodies does all three: at scatter-100000 each pass over its 27 MB of
     /// bodies waited on memory, and the three apart took 5.5 ms a step on one thread (boxes
-    /// 3.5, flags 0.5, proxies 1.6; docs/scale.md, "Stop 68"). A proxy that still holds its
+    /// 3.5, flags 0.5, proxies 1.6; docs/scale-log.md, "Stop 68"). A proxy that still holds its
     /// body's box is kept, and costs the grid nothing: the pairs are a superset of the fresh
     /// proxies' that the loop filters by the boxes themselves, so the results are the same bit
     /// for bit (sparse-1000 re-hashed a third of its bodies every step). `tested` counts box

@@ -94,7 +94,7 @@ const REFRESH_LIMIT: f64 = 0.3;
 /// Bodies in the grid from which [`Grid::sync`] and [`Grid::pairs_of_chunk`] ask the cache
 /// ahead. Below, the cells and boxes sit in the caches and the hints only cost instructions:
 /// asked for at every size, sparse-1000's step took 11 % more instructions (callgrind) and
-/// scatter-10000's was no faster (docs/scale.md, "Stop 68").
+/// scatter-10000's was no faster (docs/scale-log.md, "Stop 68").
 const PREFETCH_FROM_BODIES: usize = 20_000;
 
 /// Changed bodies ahead of its updates whose cells [`Grid::sync`] asks the cache for.

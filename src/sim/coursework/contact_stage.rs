@@ -223,7 +223,7 @@ const BOX_PREFETCH_DISTANCE: usize = 8;
 /// Candidates past the loop's next whose bodies it asks the cache for (boxes asked for before).
 const BODY_PREFETCH_DISTANCE: usize = 4;
 /// Bytes of bodies up to which the loop does not ask for them ahead, chosen between two
-/// measurements on this project's 2-core machine (32 MiB of L3; docs/scale.md, "Stop 67"):
+/// measurements on this project's 2-core machine (32 MiB of L3; docs/scale-log.md, "Stop 67"):
 /// asked for, scatter-30000's step (8 MB of bodies) and scatter-100000's (27 MB) took less
 /// time, scatter-10000's (3 MB) and sparse-1000's more: where the bodies stay in the caches, the
 /// extra box test and hints cost more than the waits they save.
@@ -247,7 +247,7 @@ fn resolve_in_order(
     // The hints below only where the loop runs the narrow phase itself (on one thread, or where
     // the last step's precomputation went mostly stale): where it was precomputed on other
     // threads, they cost scatter-100000's loop 0.4 ms a step on two threads for the boxes and
-    // 1.5 ms for the bodies (docs/scale.md, "Stop 67").
+    // 1.5 ms for the bodies (docs/scale-log.md, "Stop 67").
     let detects = precomputed.is_empty();
     let ask_for_bodies = detects && std::mem::size_of_val(bodies) > BODIES_IN_CACHE;
     while let Some(((i, j), source)) = queue.pop() {
@@ -319,7 +319,7 @@ pub fn resolve_ground_contacts(
     for (index, body) in bodies.iter_mut().enumerate() {
         // The box first: 48 bytes a body, where the flag brings in the body's 272-byte line;
         // a body whose box is off the ground is then not read at all (scatter-100000's ground
-        // stage about a sixth faster, docs/scale.md, "Stop 68").
+        // stage about a sixth faster, docs/scale-log.md, "Stop 68").
         if boxes[index].min.y > 0.0 || !body.is_dynamic() {
             continue;
         }

@@ -215,7 +215,7 @@ pub fn settle(
 
 /// The largest capacity (in bodies) at which [`settle`] keeps its lists for the next step. Kept,
 /// they spare a small scene's step two allocations (measurably faster: the box hung by a corner,
-/// docs/accuracy.md "Stop 74"); kept at any size, they would add 3.1 MiB to scatter-100000's
+/// docs/accuracy-log.md "Stop 74"); kept at any size, they would add 3.1 MiB to scatter-100000's
 /// peak, which the narrow phase reaches while they are not needed. Past 4,096 bodies (128 KiB
 /// of lists) an allocation is nothing beside the step.
 const KEPT_AWAKE_AT_MOST: usize = 4096;
