@@ -772,32 +772,47 @@ fn pile_rest(run: &Run) -> Measured {
         Scenario::PileRest.duration(),
         |_, _| {},
     );
-    let size = world
-        .bodies
-        .iter()
-        .filter(|b| !b.fixed)
-        .map(|b| world.shapes[b.shape].least_extent())
-        .fold(f64::INFINITY, f64::min);
-    let speed = world
-        .bodies
-        .iter()
-        .filter(|b| !b.fixed)
-        .map(|b| b.linear_velocity.length())
-        .fold(0.0, f64::max);
-    let penetration = world
-        .current_contacts()
-        .iter()
-        .map(|(_, _, c)| c.depth)
-        .fold(0.0, f64::max);
+    let rest = Rest::of(&world);
     let finite = world.all_finite();
     (
         wall,
         vec![
-            m("max_speed", speed),
-            m("max_penetration_relative", penetration / size),
+            m("max_speed", rest.max_speed),
+            m("max_penetration_relative", rest.max_penetration_relative),
         ],
         finite,
     )
+}
+
+/// How far a pile is from rest: pile_rest's two metrics.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rest {
+    /// The largest speed of a moving body.
+    pub max_speed: f64,
+    /// The deepest contact, relative to the least extent of the smallest moving body.
+    pub max_penetration_relative: f64,
+}
+
+impl Rest {
+    /// The world's bodies as they are now.
+    pub fn of(world: &World) -> Self {
+        let moving = || world.bodies.iter().filter(|b| !b.fixed);
+        let size = moving()
+            .map(|b| world.shapes[b.shape].least_extent())
+            .fold(f64::INFINITY, f64::min);
+        let max_speed = moving()
+            .map(|b| b.linear_velocity.length())
+            .fold(0.0, f64::max);
+        let penetration = world
+            .current_contacts()
+            .iter()
+            .map(|(_, _, c)| c.depth)
+            .fold(0.0, f64::max);
+        Self {
+            max_speed,
+            max_penetration_relative: penetration / size,
+        }
+    }
 }
 
 #[cfg(test)]
