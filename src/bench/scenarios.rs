@@ -831,6 +831,46 @@ mod tests {
         assert_eq!(Scenario::from_str("slope20", false), Ok(Scenario::Slope20));
     }
 
+    /// pile_rest's measure of a box whose lowest face is 0.03 below the ground (its thinnest
+    /// side 0.5 long: 6 %) and which moves at 5 units/s, beside a fixed box deeper still and
+    /// faster, which neither counts.
+    #[test]
+    fn rest_measures_the_moving_bodies_speed_and_deepest_contact() {
+        let box_shape = shape(&assets::cuboid(DVec3::new(1.0, 0.25, 0.75)));
+        let mut moving = RigidBody::on_shape(
+            &box_shape,
+            0,
+            1.0,
+            false,
+            DVec3::new(0.0, 0.25 - 0.03, 0.0),
+            DQuat::IDENTITY,
+        );
+        moving.linear_velocity = DVec3::new(3.0, 4.0, 0.0);
+        let mut wall = RigidBody::on_shape(
+            &box_shape,
+            0,
+            1.0,
+            true,
+            DVec3::new(10.0, 0.0, 0.0),
+            DQuat::IDENTITY,
+        );
+        wall.linear_velocity = DVec3::new(0.0, 0.0, 100.0);
+        let world = World::new(
+            vec![box_shape],
+            vec!["box".into()],
+            vec![moving, wall],
+            Vec::new(),
+            Settings::accurate(),
+        );
+        let rest = Rest::of(&world);
+        assert!((rest.max_speed - 5.0).abs() < 1e-12, "{rest:?}");
+        let expected = 0.03 / 0.5;
+        assert!(
+            (rest.max_penetration_relative - expected).abs() < 1e-6,
+            "{rest:?}"
+        );
+    }
+
     #[test]
     fn flip_time_is_where_the_samples_cross_zero() {
         // cos(t) sampled every 0.1 s crosses zero at pi/2; a chord's root is off by
