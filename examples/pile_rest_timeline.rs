@@ -13,11 +13,8 @@
 
 use std::process::ExitCode;
 use tumble::bench::rapier::RapierScene;
-use tumble::bench::scenarios::Rest;
+use tumble::bench::scenarios::{Rest, Scenario, pile_rest_world};
 use tumble::sim::{Settings, World};
-
-/// Simulated seconds, as `bench accuracy`'s pile_rest runs.
-const SECONDS: f64 = 10.0;
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -30,11 +27,9 @@ fn main() -> ExitCode {
     };
     let settings = Settings {
         time_step: dt,
-        friction: 0.5,
-        restitution: 0.2,
         ..Settings::accurate()
     };
-    let mut world = tumble::scene::generate::pile(bodies, settings);
+    let mut world = pile_rest_world(bodies, settings);
     let mut mirror = world.clone();
     let rapier = RapierScene::from_world(&world, true);
     let (rows, rapier) = world.stepping(move |world| timeline(world, rapier, dt));
@@ -83,11 +78,11 @@ struct Second {
     rapier_asleep: usize,
 }
 
-/// Steps both engines in turn for [`SECONDS`], a row per simulated second; gives Rapier's scene
-/// back at its end.
+/// Steps both engines in turn for pile_rest's duration, a row per simulated second; gives
+/// Rapier's scene back at its end.
 fn timeline(world: &mut World, mut rapier: RapierScene, dt: f64) -> (Vec<Second>, RapierScene) {
     let per_second = (1.0 / dt).round().max(1.0) as usize;
-    let steps = (SECONDS / dt).round() as usize;
+    let steps = (Scenario::PileRest.duration() / dt).round() as usize;
     let mut rows = Vec::new();
     let mut row = Second::default();
     for k in 1..=steps {

@@ -760,12 +760,7 @@ fn slope(run: &Run, degrees: f64) -> Measured {
 /// restitution 0.2, 10 s: the largest speed of any body at the end, and the deepest penetration
 /// then relative to the smallest body's size.
 fn pile_rest(run: &Run) -> Measured {
-    let settings = Settings {
-        friction: SLOPE_FRICTION,
-        restitution: 0.2,
-        ..run.settings.clone()
-    };
-    let mut world = crate::scene::generate::pile(200, settings);
+    let mut world = pile_rest_world(200, run.settings.clone());
     let wall = simulate(
         run.engine,
         &mut world,
@@ -782,6 +777,17 @@ fn pile_rest(run: &Run) -> Measured {
         ],
         finite,
     )
+}
+
+/// pile_rest's pile of `bodies` bodies (the bench's is 200) under `settings` with its friction
+/// and restitution.
+pub fn pile_rest_world(bodies: usize, settings: Settings) -> World {
+    let settings = Settings {
+        friction: SLOPE_FRICTION,
+        restitution: 0.2,
+        ..settings
+    };
+    crate::scene::generate::pile(bodies, settings)
 }
 
 /// How far a pile is from rest: pile_rest's two metrics.
