@@ -13,6 +13,18 @@ use tumble::bench::scale::{SCENE_FAMILIES, ScaleConfig, ScaleReport, Variant};
 use tumble::bench::scenarios::Scenario;
 use tumble::bench::soak::SoakResult;
 
+/// Where `bench scale` and `bench accuracy` put their report.
+#[derive(Debug, Args)]
+pub struct ReportArgs {
+    /// Print one JSON object instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Folder for the table (.txt), the CSV, the JSON (which `bench replot` reads) and the
+    /// plots.
+    #[arg(long, default_value = "bench-out")]
+    pub out: PathBuf,
+}
+
 #[derive(Debug, Args)]
 pub struct ScaleArgs {
     /// Scene families to run: sparse (the coursework's comparison: more bodies in the same
@@ -48,13 +60,8 @@ pub struct ScaleArgs {
     /// Short smoke run: the sizes, steps and time cap in brackets above, where not given.
     #[arg(long)]
     pub quick: bool,
-    /// Print one JSON object instead of the table.
-    #[arg(long)]
-    pub json: bool,
-    /// Folder for the table (.txt), the CSV, the JSON (which `bench replot` reads) and the
-    /// plots.
-    #[arg(long, default_value = "bench-out")]
-    pub out: PathBuf,
+    #[command(flatten)]
+    pub report: ReportArgs,
 }
 
 #[derive(Debug, Args)]
@@ -74,13 +81,8 @@ pub struct AccuracyArgs {
     /// accurate and rapier combinations, where --dts or --combinations do not name others.
     #[arg(long)]
     pub quick: bool,
-    /// Print one JSON object instead of the table.
-    #[arg(long)]
-    pub json: bool,
-    /// Folder for the table (.txt), the CSV, the JSON (which `bench replot` reads) and the
-    /// plots.
-    #[arg(long, default_value = "bench-out")]
-    pub out: PathBuf,
+    #[command(flatten)]
+    pub report: ReportArgs,
 }
 
 #[derive(Debug, Args)]
@@ -172,7 +174,7 @@ fn scale_config(args: &ScaleArgs) -> ScaleConfig {
     config.warmup = args.warmup.unwrap_or(config.warmup);
     config.max_seconds = args.max_seconds.unwrap_or(config.max_seconds);
     config.huge = args.huge;
-    config.out = args.out.clone();
+    config.out = args.report.out.clone();
     config
 }
 
@@ -190,10 +192,16 @@ pub fn scale(args: &ScaleArgs) -> anyhow::Result<()> {
         );
     }
     let report = tumble::bench::scale::run(&config, &ProgressBar::default())?;
-    print_or_table(args.json, &report, &report.csv, &report.plots, |out| {
-        writeln!(out, "machine: {}", report.machine.describe())?;
-        print_scale(out, &report)
-    })
+    print_or_table(
+        args.report.json,
+        &report,
+        &report.csv,
+        &report.plots,
+        |out| {
+            writeln!(out, "machine: {}", report.machine.describe())?;
+            print_scale(out, &report)
+        },
+    )
 }
 
 /// With `--json` prints `value` as JSON, else the `table` and then the files written (one
@@ -352,11 +360,11 @@ pub fn accuracy(args: &AccuracyArgs) -> anyhow::Result<()> {
         dts: args.dts.clone(),
         combinations: args.combinations.clone(),
         quick: args.quick,
-        out: args.out.clone(),
+        out: args.report.out.clone(),
     };
     let report = tumble::bench::accuracy::run(&config, &ProgressBar::default())?;
     print_or_table(
-        args.json,
+        args.report.json,
         &report.results,
         &report.csv,
         &report.plots,

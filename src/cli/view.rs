@@ -62,6 +62,20 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((w, h))
 }
 
+/// A second world beside the first (`tumble view` and `tumble record`).
+#[derive(Debug, Args)]
+pub struct CompareArgs {
+    /// Compare with other settings: a second world of the scene stepped in lockstep and drawn
+    /// beside the first, each labelled. A preset (`accurate`, `coursework`) and/or settings
+    /// flags, e.g. `--compare accurate` or `--compare "--solver coursework --dt 0.01"`.
+    #[arg(long, value_name = "PRESET_OR_FLAGS", allow_hyphen_values = true)]
+    pub compare: Option<String>,
+    /// With --compare: draw the second world as a translucent ghost over the first instead of
+    /// beside it.
+    #[arg(long, requires = "compare")]
+    pub ghost: bool,
+}
+
 #[derive(Debug, Args)]
 pub struct ViewArgs {
     #[command(flatten)]
@@ -92,15 +106,8 @@ pub struct ViewArgs {
     /// taken as 88.8) and scene units (default: framed scene).
     #[arg(long, value_name = "SPEC", allow_hyphen_values = true)]
     pub camera: Option<String>,
-    /// Compare with other settings: a second world of the scene stepped in lockstep and drawn
-    /// beside the first, each labelled. A preset (`accurate`, `coursework`) and/or settings
-    /// flags, e.g. `--compare accurate` or `--compare "--solver coursework --dt 0.01"`.
-    #[arg(long, value_name = "PRESET_OR_FLAGS", allow_hyphen_values = true)]
-    pub compare: Option<String>,
-    /// With --compare: draw the second world as a translucent ghost over the first instead of
-    /// beside it.
-    #[arg(long, requires = "compare")]
-    pub ghost: bool,
+    #[command(flatten)]
+    pub comparison: CompareArgs,
     #[command(flatten)]
     pub settings: SettingsArgs,
 }
@@ -136,15 +143,8 @@ pub struct RecordArgs {
     /// `orbit`: the framed scene turning once around its vertical axis over the recording.
     #[arg(long, value_name = "SPEC", allow_hyphen_values = true)]
     pub camera: Option<String>,
-    /// Compare with other settings: a second world of the scene stepped in lockstep and drawn
-    /// beside the first, each labelled. A preset (`accurate`, `coursework`) and/or settings
-    /// flags, e.g. `--compare accurate` or `--compare "--solver coursework --dt 0.01"`.
-    #[arg(long, value_name = "PRESET_OR_FLAGS", allow_hyphen_values = true)]
-    pub compare: Option<String>,
-    /// With --compare: draw the second world as a translucent ghost over the first instead of
-    /// beside it.
-    #[arg(long, requires = "compare")]
-    pub ghost: bool,
+    #[command(flatten)]
+    pub comparison: CompareArgs,
 
     /// Draw contact points and normals.
     #[arg(long)]
@@ -197,7 +197,7 @@ fn compare_settings(spec: Option<&str>) -> anyhow::Result<Option<Settings>> {
 
 #[cfg(feature = "viewer")]
 pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
-    compare_settings(args.compare.as_deref())?;
+    compare_settings(args.comparison.compare.as_deref())?;
     // Checked before the window opens (the view applies it once the scene is framed).
     if let Some(spec) = &args.camera {
         anyhow::ensure!(
@@ -241,8 +241,8 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
         camera: args.camera.clone(),
         interrupted: super::interrupt::interrupted,
         constraints: super::constraints_choice(args.scene.constraints.as_deref()),
-        compare: args.compare.clone(),
-        layout: layout(args.ghost),
+        compare: args.comparison.compare.clone(),
+        layout: layout(args.comparison.ghost),
         shadows: !args.no_shadows,
         fixed_bodies: !args.no_fixed,
         parse_settings: parse_compare,
@@ -286,7 +286,7 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     use tumble::viewer::{DrawOptions, OutputKind, RecordOptions};
     let kind = OutputKind::of(&args.output)?;
     let (settings, notes) = args.settings.checked()?;
-    let compare = compare_settings(args.compare.as_deref())?;
+    let compare = compare_settings(args.comparison.compare.as_deref())?;
     // Refused before the settings' warnings: `--dt 0` warned that nothing would move, then was
     // refused.
     let dts: Vec<f64> = std::iter::once(&settings)
@@ -318,7 +318,7 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
             contacts: args.contacts,
             shadows: !args.no_shadows,
             fixed_bodies: !args.no_fixed,
-            layout: layout(args.ghost),
+            layout: layout(args.comparison.ghost),
             ..DrawOptions::default()
         },
         compare,
