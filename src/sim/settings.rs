@@ -94,7 +94,7 @@ choice_enum! {
     pub enum RotationIntegrator (default Coursework) {
         Coursework = "coursework": "World angular velocity held constant between impulses (the coursework's scheme).",
         Gyroscopic = "gyroscopic": "Implicit gyroscopic term solved by one Newton step in body frame (Catto, GDC 2015): torque-free bodies precess and flip.",
-        AngularMomentum = "angular-momentum": "World angular momentum held over the step, orientation advanced by the explicit-midpoint angular velocity: keeps L exactly, second order.",
+        AngularMomentum = "angular-momentum": "Torque-free turn by the implicit midpoint rule on Euler's equations and a Cayley rotation (Austin, Krishnaprasad and Wang 1993): keeps the energy and the world angular momentum exactly, second order; torque-free bodies precess and flip.",
     }
 }
 
