@@ -1399,6 +1399,7 @@ fn cli_warns_of_settings_the_solver_ignores() {
         &["--constraint-schedule", "sparse"],
         &["--skip-separating-contacts"],
         &["--contact-patches"],
+        &["--broad-phase", "all-pairs"],
     ];
     for flags in coursework_only {
         let warned = run(&[flags, &["--accurate"]].concat());

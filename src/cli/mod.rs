@@ -59,7 +59,8 @@ pub struct SettingsArgs {
     #[arg(long)]
     pub contact_patches: bool,
     /// Substeps per step (the soft step takes more in a step that begins with contacts touching
-    /// where N would make them longer than 1/200 s) [default: 1; 4 with --accurate].
+    /// where N would make them longer than 1/200 s, and in a scene with distance constraints
+    /// where they would be longer than 1/80 s) [default: 1; 4 with --accurate].
     #[arg(long, value_name = "N")]
     pub substeps: Option<u32>,
     /// Step length from which a step takes all its substeps; a shorter one takes
@@ -70,7 +71,8 @@ pub struct SettingsArgs {
     /// Rotation integrator [default: coursework; angular-momentum with --accurate].
     #[arg(long, value_enum)]
     pub rotation_integrator: Option<RotationIntegrator>,
-    /// Broad phase (both give identical results) [default: grid].
+    /// Broad phase of the coursework solver (both give identical results; the soft step
+    /// always uses the grid) [default: grid].
     #[arg(long, value_enum)]
     pub broad_phase: Option<BroadPhase>,
     /// Constraint schedule (coursework solver) [default: sweep].
@@ -232,6 +234,7 @@ impl SettingsArgs {
                     (self.constraint_schedule.is_some(), "--constraint-schedule"),
                     (self.skip_separating_contacts, "--skip-separating-contacts"),
                     (self.contact_patches, "--contact-patches"),
+                    (self.broad_phase.is_some(), "--broad-phase"),
                 ],
                 "the soft step solves contacts and constraints its own way; add --solver coursework",
             ),

@@ -8,8 +8,8 @@ use crate::World;
 use crate::sim::Grab;
 use glam::DVec3;
 
-/// Default natural frequency of the grab spring (Hz); the core caps it at a quarter of the step
-/// rate.
+/// Default natural frequency of the grab spring (Hz); the core caps it at a quarter of the
+/// substep rate.
 pub const DEFAULT_HERTZ: f64 = 4.0;
 
 /// The plane a grabbed point moves on: through the point, facing the camera.

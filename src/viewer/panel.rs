@@ -394,7 +394,7 @@ fn display_ui(ui: &mut egui::Ui, session: &mut Session, state: &mut PanelState) 
     )
     .on_hover_text(
         "Natural frequency of the ctrl-drag spring, critically damped; its force scales with \
-         the body's mass (at most a quarter of the step rate)",
+         the body's mass (at most a quarter of the substep rate)",
     );
 }
 
@@ -559,7 +559,7 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
         ui.add(egui::DragValue::new(&mut gravity.z).speed(0.1).prefix("z "));
     });
     ui.checkbox(skip_separating_contacts, "skip separating contacts")
-        .on_hover_text("No impulse for contacts whose bodies already separate");
+        .on_hover_text("No impulse for contacts whose bodies already separate (coursework solver)");
     ui.checkbox(sleep, "sleep")
         .on_hover_text("Islands resting for half a second sleep until touched (soft-step solver)");
     ui.checkbox(contact_patches, "contact patches")
@@ -569,7 +569,9 @@ fn settings_ui(ui: &mut egui::Ui, settings: &mut Settings) {
              (coursework solver)",
         );
     enum_choice(ui, "rotation integrator", rotation_integrator);
-    enum_choice(ui, "broad phase", broad_phase);
+    enum_choice(ui, "broad phase", broad_phase).on_hover_text(
+        "How the coursework solver finds candidate pairs (the soft step always uses the grid)",
+    );
     enum_choice(ui, "constraint schedule", constraint_schedule);
 }
 
@@ -589,7 +591,8 @@ fn preset_buttons(ui: &mut egui::Ui, settings: &mut Settings) {
         if ui
             .button("Accurate preset")
             .on_hover_text(
-                "--accurate: the soft step, 4 substeps, friction 0.5, sleeping (the time step kept)",
+                "--accurate: the soft step, 4 substeps (all of them from dt 0.01), the angular-momentum \
+                 integrator, restitution threshold 0.5, friction 0.5, sleeping (the time step kept)",
             )
             .clicked()
         {
@@ -602,7 +605,7 @@ fn preset_buttons(ui: &mut egui::Ui, settings: &mut Settings) {
 }
 
 /// A combo box over every value of a settings enum (new values appear by themselves).
-fn enum_choice<T: Choice>(ui: &mut egui::Ui, label: &str, value: &mut T) {
+fn enum_choice<T: Choice>(ui: &mut egui::Ui, label: &str, value: &mut T) -> egui::Response {
     egui::ComboBox::from_label(label)
         .selected_text(value.name())
         .show_ui(ui, |ui| {
@@ -610,7 +613,8 @@ fn enum_choice<T: Choice>(ui: &mut egui::Ui, label: &str, value: &mut T) {
                 ui.selectable_value(value, variant, variant.name())
                     .on_hover_text(variant.help());
             }
-        });
+        })
+        .response
 }
 
 /// Frame, stepping and world statistics; when comparing, of the world whose settings are edited.
@@ -727,7 +731,7 @@ fn constraint_rows(ui: &mut egui::Ui, solver: Solver, last: &crate::StepStats) {
         ),
     );
     if last.budget_hit {
-        stat(ui, "budget", alarm("ran out (raise max visits)"));
+        stat(ui, "budget", alarm("ran out (raise max iterations)"));
     } else {
         stat(ui, "budget", "enough");
     }
