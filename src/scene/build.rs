@@ -150,7 +150,8 @@ const OVERLAPS_LISTED: usize = 5;
 /// (y = 0), deeper than [`STARTING_OVERLAP`] of its size, on its record's line (of two movable
 /// bodies, the later's: it is placed inside the earlier), in line order; past
 /// [`OVERLAPS_LISTED`], one that counts the rest. `records[i]` is body i's record. (The depths
-/// are those of the solver's own contacts: with `--contact-patches` the coursework's.)
+/// are those the coursework's detection finds, [`World::current_contacts`], whichever solver is
+/// set: at the patch with `--contact-patches`.)
 fn starting_overlaps(world: &World, path: &Path, records: &[SceneRecord]) -> Vec<String> {
     let size = |i: usize| world.shapes[world.bodies[i].shape].least_extent();
     let mut found: Vec<Overlap> = (world.current_contacts().into_iter())

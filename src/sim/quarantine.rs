@@ -38,7 +38,8 @@ impl Quarantine {
         self.last_good.capacity() * std::mem::size_of::<(DVec3, DQuat)>()
     }
 
-    /// Freezes the bodies that blew up since the last check; returns their indices.
+    /// Freezes the bodies that blew up since the last check and appends their indices to
+    /// `frozen`.
     /// Sleeping bodies are skipped: the solver did not move them.
     pub fn check(&mut self, bodies: &mut [RigidBody], frozen: &mut Vec<usize>) {
         let items = bodies.par_iter_mut().zip(&mut self.last_good).enumerate();

@@ -25,7 +25,9 @@ impl Rng {
     pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
         lo + (hi - lo) * self.unit()
     }
-    /// A rotation by a uniformly random axis and an angle up to `max_angle`.
+    /// A rotation by a random axis (a point drawn uniformly in the cube [-1, 1]^3, normalised:
+    /// not uniform on the sphere, which the generated scenes do not need) and an angle up to
+    /// `max_angle`.
     pub fn tilt(&mut self, max_angle: f64) -> DQuat {
         let axis = DVec3::new(
             self.range(-1.0, 1.0),

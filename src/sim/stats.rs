@@ -6,7 +6,8 @@ use serde::Serialize;
 use serde::ser::SerializeMap;
 use std::time::Instant;
 
-/// The stages of a step, in the order they run. The one list of stage names: statistics, `tumble
+/// The stages of a step, in the order the coursework solver runs them (the soft step
+/// integrates the bodies nothing touches after [`Stage::SolvePrepare`]). The one list of stage names: statistics, `tumble
 /// run`, the benchmarks and the viewer panel all iterate over [`Stage::ALL`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Stage {
@@ -293,9 +294,9 @@ pub struct StepStats {
     pub constraint_corrections: usize,
     /// The constraint loop stopped on its budget with constraints still violated.
     pub budget_hit: bool,
-    /// Soft step: joint groups whose position projections ran out of rounds with a row still
-    /// outside its bounds (by more than 1e-6 of the bound): the step could not hold them, and
-    /// more substeps are the remedy.
+    /// Soft step: position projections of a joint group (one per group in each substep that
+    /// projects it) that ran out of rounds with a row still outside its bounds (by more than
+    /// 1e-6 of the bound): the step could not hold them, and more substeps are the remedy.
     pub joint_projections_cut_short: usize,
     /// Soft step: joint groups handed to Gauss-Seidel because their rows depend on each other
     /// (an over-braced truss whose active sets cycled), at the end of the step: held within
@@ -303,9 +304,11 @@ pub struct StepStats {
     pub joint_groups_relaxed: usize,
     /// Bodies asleep at the end of the step (soft-step solver).
     pub asleep: usize,
-    /// Substeps the step took: the setting's count, or for the soft step more where it begins
-    /// with contacts touching and its substeps would be longer than 1/200 s; 0 for a step
-    /// skipped at rest.
+    /// Substeps the step took: the setting's count; for the soft step fewer in a step shorter
+    /// than `full_substeps_from`, and more where it begins with contacts touching and its
+    /// substeps would be longer than 1/200 s, or the scene has distance constraints and they
+    /// would be longer than 1/80 s (doubled after projections cut short); 0 for a step skipped
+    /// at rest.
     pub substeps: u32,
     /// Bodies frozen this step because their state went non-finite or absurd.
     pub quarantined: Vec<usize>,

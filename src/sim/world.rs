@@ -116,8 +116,8 @@ impl World {
         {
             // From outside the thread pool every parallel loop that splits would hand its work
             // over cold (wake a worker, wait on it); inside it they split hot. One hand-over per
-            // step instead of one per loop (pile-200 under the soft step: four passes of every
-            // colour per substep; sparse-1000 under the coursework solver: 40 % of a one-thread
+            // step instead of one per loop (pile-200 under the soft step: three passes of every
+            // colour per substep, four where the substep clamps the contacts; sparse-1000 under the coursework solver: 40 % of a one-thread
             // step was spent switching threads). A scene with nothing awake stays here: its step
             // has no loop to split. A loop of many steps is better run in the pool as a whole
             // ([`World::stepping`]): each hand-over here wakes an idle core.

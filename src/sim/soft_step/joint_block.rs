@@ -33,7 +33,8 @@ pub const MAX_ENVELOPE: usize = 1 << 16;
 /// principal pivoting with Murty's fallback (Judice and Pires 1994) was measured too and ran
 /// out as often.
 const ACTIVE_SET_ROUNDS: usize = 32;
-/// Projections of a group's positions per step at most: each projects the rows' linearisation
+/// Rounds of one projection of a group's positions at most (a projection runs in each substep
+/// where a row is far out, and after the last): each projects the rows' linearisation
 /// at the poses it starts from, so where links turn far in a step (a rope's end whipping at
 /// 80 units/s) one leaves them stretched by up to a tenth of their length; the next ones start
 /// from closer poses (non-linear Gauss-Seidel, with an exact block). A whip needs more than
