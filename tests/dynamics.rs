@@ -20,11 +20,15 @@ fn params(e: f64) -> ContactParams {
 }
 
 fn ellipsoid_body(position: DVec3) -> (tumble::Shape, RigidBody) {
+    ellipsoid_body_of_density(position, 7.0)
+}
+
+fn ellipsoid_body_of_density(position: DVec3, density: f64) -> (tumble::Shape, RigidBody) {
     let s = shape(&assets::ellipsoid(DVec3::new(3.0, 2.0, 1.0), 8, 16));
     let b = RigidBody::on_shape(
         &s,
         0,
-        7.0,
+        density,
         false,
         position,
         DQuat::from_rotation_z(0.3) * DQuat::from_rotation_x(0.2),
@@ -387,8 +391,9 @@ fn constraint_between(
 fn position_projection_lands_on_the_violated_bound() {
     for is_upper in [false, true] {
         let (_, mut a) = ellipsoid_body(DVec3::new(0.0, 0.0, 0.0));
-        let (_, mut b) = ellipsoid_body(DVec3::new(5.0, 1.0, -1.0));
-        b.density *= 1.0;
+        // Three times heavier: a split of the correction that ignored the masses would move
+        // the pair's centre of mass.
+        let (_, mut b) = ellipsoid_body_of_density(DVec3::new(5.0, 1.0, -1.0), 21.0);
         let (l1, l2) = (DVec3::new(1.0, 0.5, 0.2), DVec3::new(-0.5, 0.3, 0.1));
         let c = constraint_between(&a, &b, l1, l2, 1.0, is_upper);
         // Violate it: stretch for the upper bound, squeeze for the lower.
@@ -454,7 +459,9 @@ fn position_projection_moves_only_the_movable_body() {
 #[test]
 fn velocity_projection_zeroes_jv_and_keeps_linear_momentum() {
     let (_, mut a) = ellipsoid_body(DVec3::new(0.0, 0.0, 0.0));
-    let (_, mut b) = ellipsoid_body(DVec3::new(5.0, 1.0, -1.0));
+    // Three times heavier: velocity changes not in inverse proportion to the masses would
+    // change the momentum.
+    let (_, mut b) = ellipsoid_body_of_density(DVec3::new(5.0, 1.0, -1.0), 21.0);
     b.angular_velocity = DVec3::new(0.2, 1.0, -0.4);
     a.linear_velocity = DVec3::new(1.0, -2.0, 0.5);
     a.angular_velocity = DVec3::new(-0.6, 0.1, 0.3);
@@ -489,16 +496,36 @@ fn coursework_rotation_ignores_half_angles_below_qexp_cutoff() {
             assert!(b.orientation.dot(expected).abs() > 1.0 - 1e-14);
         }
     }
-    // The opt-in integrators keep exact rotations at any speed.
-    let mut b = ellipsoid_body(DVec3::ZERO).1;
-    let q0 = b.orientation;
-    b.angular_velocity = DVec3::new(1e-4, 0.0, 0.0);
-    let exact = Settings {
-        rotation_integrator: tumble::sim::settings::RotationIntegrator::Gyroscopic,
-        ..settings
-    };
-    integrate_body(&mut b, &exact, dt);
-    assert_ne!(b.orientation, q0);
+    // The opt-in integrators have no cut-off: a slow spin turns the body by |w| dt about w (in
+    // one step at 1e-4 rad/s its precession is far below the tolerance).
+    use tumble::sim::settings::RotationIntegrator;
+    for integrator in [
+        RotationIntegrator::Gyroscopic,
+        RotationIntegrator::AngularMomentum,
+    ] {
+        let mut b = ellipsoid_body(DVec3::ZERO).1;
+        let (q0, w0) = (b.orientation, DVec3::new(1e-4, 0.0, 0.0));
+        b.angular_velocity = w0;
+        let opted = Settings {
+            rotation_integrator: integrator,
+            ..settings.clone()
+        };
+        integrate_body(&mut b, &opted, dt);
+        let turn = w0.length() * dt;
+        let expected = DQuat::from_axis_angle(w0.normalize(), turn) * q0;
+        // Half the angle between them, to rounding (`angle_between`'s arccosine would read any
+        // error under 1e-8 rad as none).
+        let q = b.orientation;
+        let off = (q - expected).length().min((q + expected).length());
+        assert!(
+            off < 1e-6 * turn,
+            "{integrator:?}: {off:e} off a turn of {turn:e}"
+        );
+        assert!(
+            (q - q0).length() > 0.4 * turn,
+            "{integrator:?}: did not turn"
+        );
+    }
 }
 
 #[test]

@@ -181,8 +181,9 @@ fn box_test_agrees_with_the_exact_box_distance() {
 }
 
 /// Two of the coursework's boxes exactly face to face touch with no direction to push along
-/// (on hulls with points inside their faces parry gives no normal at zero distance): no patch,
-/// where `--contact-patches` made the normal NaN and blew both bodies up in their first step.
+/// (on hulls with points inside their faces parry gives no normal at zero distance): a patch, if
+/// any, is finite, where `--contact-patches` made the normal NaN and blew both bodies up in their
+/// first step.
 #[test]
 fn a_patch_of_boxes_exactly_touching_has_no_nan() {
     let Some(dir) = coursework_dir() else { return };

