@@ -100,6 +100,36 @@ fn the_history_is_bounded_by_its_memory_budget() {
     assert_eq!(s.world().step_count, span.first_step);
 }
 
+/// Lowering the budget while rewound keeps the state the worlds are at, and the history in
+/// order: resuming from it goes on from that state.
+#[test]
+fn a_smaller_budget_while_rewound_keeps_the_current_state() {
+    let mut s = session("pile-60", Settings::default());
+    for _ in 0..100 {
+        s.step_once();
+    }
+    assert!(s.seek_step(20));
+    let at = all_bits(&s);
+    let per_step = s.timeline.span().bytes / s.timeline.len();
+    s.timeline.set_budget(30 * per_step);
+    assert!(s.timeline.len() <= 30, "{}", s.timeline.len());
+    assert_eq!(s.timeline.step_at(s.timeline.cursor()), Some(20));
+    let span = s.timeline.span();
+    assert!(span.first_step <= 20 && 20 <= span.last_step, "{span:?}");
+    s.step_forward();
+    s.step_back();
+    assert!(all_bits(&s) == at, "back at step 20");
+    for _ in 0..3 {
+        s.step_once();
+    }
+    assert_eq!(s.world().step_count, 23);
+    assert_eq!(s.timeline.span().last_step, 23);
+    let steps: Vec<u64> = (0..s.timeline.len())
+        .map(|k| s.timeline.step_at(k).unwrap())
+        .collect();
+    assert!(steps.windows(2).all(|w| w[1] == w[0] + 1), "{steps:?}");
+}
+
 /// Two lanes of a comparison each equal an independent world stepped with their settings, the
 /// second at half the time step (twice the steps).
 #[test]
@@ -208,7 +238,9 @@ fn a_grab_pulls_with_the_force_of_a_critically_damped_spring() {
         }
         let body = s.world().bodies[0].clone();
         let target = body.position + DVec3::new(2.0, 3.0, -1.0);
-        assert!(s.grab(0, DVec3::ZERO, target), "{what}");
+        // Grabbed where it is, as the window grabs, then dragged.
+        assert!(s.grab(0, DVec3::ZERO, body.position), "{what}");
+        s.drag_grab(target);
         // In free fall every step takes the setting's substeps.
         assert_eq!(s.lanes[0].last.substeps, settings.substeps, "{what}");
         let (point, force) = grab::force(s.world(), s.lanes[0].last.substeps).unwrap();
@@ -249,7 +281,8 @@ fn the_grab_force_shown_is_over_the_substep_the_soft_step_takes() {
     assert_eq!(substeps, 8, "a touching step at dt 0.04");
     let body = s.world().bodies[0].clone();
     let target = body.position + DVec3::new(0.0, 3.0, 0.0);
-    assert!(s.grab(0, DVec3::ZERO, target));
+    assert!(s.grab(0, DVec3::ZERO, body.position));
+    s.drag_grab(target);
     let (_, force) = grab::force(s.world(), substeps).unwrap();
     let expected = assert_grab_spring(force, (&body, target), settings.time_step / 8.0, "");
     let (_, four) = grab::force(s.world(), 0).unwrap();
@@ -269,7 +302,8 @@ fn light_and_heavy_bodies_follow_alike() {
         .map(|i| {
             let mut s = two_boxes(Settings::default());
             let start = s.world().bodies[i].world_point(local);
-            assert!(s.grab(i, local, start + offset));
+            assert!(s.grab(i, local, start));
+            s.drag_grab(start + offset);
             for _ in 0..60 {
                 s.step_once();
             }
@@ -292,32 +326,66 @@ fn light_and_heavy_bodies_follow_alike() {
     );
 }
 
+/// A paused drag moves the grabbed body of every world by the cursor's displacement, each from
+/// where it was (compared worlds drift apart: here the second falls at a tenth of the time
+/// step); a click alone moves nothing.
 #[test]
 fn a_paused_drag_moves_the_pose_in_every_world() {
     let mut s = two_boxes(Settings::default());
-    s.compare(Settings::accurate());
+    s.compare(Settings {
+        time_step: 0.002,
+        ..Settings::accurate()
+    });
     for _ in 0..5 {
         s.step_once();
     }
     s.pause();
     let local = DVec3::new(0.5, 0.0, 0.25);
-    let before = s.world().bodies[1].clone();
-    let picked = before.world_point(local);
+    let before: Vec<RigidBody> = s.lanes.iter().map(|l| l.world.bodies[1].clone()).collect();
+    let apart = before[1].world_point(local) - before[0].world_point(local);
+    assert!(
+        apart.length() > 1e-3,
+        "the worlds' bodies are apart: {apart}"
+    );
+    let picked = before[0].world_point(local);
     assert!(s.grab(1, local, picked));
-    let target = picked + DVec3::new(-1.0, 2.0, 0.5);
-    s.drag_grab(target);
-    for lane in &s.lanes {
-        let b = &lane.world.bodies[1];
-        assert!((b.world_point(local) - target).length() < 1e-12);
-        assert_eq!(b.orientation, before.orientation);
+    for (lane, b) in s.lanes.iter().zip(&before) {
+        assert_eq!(&lane.world.bodies[1], b, "a click moves no body");
     }
-    assert_eq!(s.world().bodies[1].linear_velocity, before.linear_velocity);
+    let moved = DVec3::new(-1.0, 2.0, 0.5);
+    s.drag_grab(picked + moved);
+    for (lane, b0) in s.lanes.iter().zip(&before) {
+        let b = &lane.world.bodies[1];
+        assert!((b.world_point(local) - (b0.world_point(local) + moved)).length() < 1e-12);
+        assert_eq!(b.orientation, b0.orientation);
+    }
+    assert_eq!(
+        s.world().bodies[1].linear_velocity,
+        before[0].linear_velocity
+    );
     s.release_grab();
     assert!(!s.grabbing());
     // The edited state is the history's current one: stepping back and forth comes back to it.
     s.step_back();
     s.step_forward();
+    let target = picked + moved;
     assert!((s.world().bodies[1].world_point(local) - target).length() < 1e-12);
+}
+
+/// A click on a body while rewound, without a drag, keeps the history after it.
+#[test]
+fn a_click_while_rewound_keeps_the_future() {
+    let mut s = two_boxes(Settings::default());
+    for _ in 0..10 {
+        s.step_once();
+    }
+    assert!(s.seek_step(4));
+    let local = DVec3::new(0.5, 0.0, 0.25);
+    let picked = s.world().bodies[1].world_point(local);
+    assert!(s.grab(1, local, picked));
+    s.release_grab();
+    assert_eq!(s.timeline.len(), 11);
+    assert_eq!(s.timeline.span().last_step, 10);
 }
 
 /// A scratch directory with tumble's box mesh in it.

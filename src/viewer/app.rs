@@ -268,11 +268,15 @@ impl App {
     }
 
     /// After the session's scene was replaced (opened or reloaded): the renderer's meshes, the
-    /// window title, no selection or grab.
+    /// window title, no selection or grab, and a recording's next frame at the new run's time 0
+    /// (as after a reset: else it skipped the new run's frames up to the old run's time).
     fn scene_replaced(&mut self) {
         self.panel.load_error = None;
         self.panel.draw.selected = None;
         self.grab = None;
+        if let Some(recording) = &mut self.recording {
+            recording.rewind();
+        }
         if let Some(gfx) = &mut self.gfx {
             gfx.renderer
                 .set_world(&gfx.gpu.device, self.session.world());
@@ -342,7 +346,11 @@ impl App {
             Action::StartRecording => self.start_recording(),
             Action::StopRecording => self.stop_recording(),
             Action::StepBack => self.session.step_back(),
-            Action::StepForward => self.session.step_forward(),
+            Action::StepForward => {
+                // At the history's end a new step, which a recording films as `Step`'s.
+                self.session.step_forward();
+                self.capture_recording_frames();
+            }
             Action::Seek(index) => self.session.seek(index),
             Action::Compare(spec) => self.start_comparing(&spec),
             Action::StopComparing => {

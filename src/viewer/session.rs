@@ -32,6 +32,9 @@ pub struct Lane {
     pub frame_steps: u32,
     /// Energy and violation over the last `plot_span` simulated seconds.
     pub plot: VecDeque<Sample>,
+    /// Where this world's grabbed point was, less where the grab began in the world it was
+    /// made in ([`Session::grab`]): its target is the cursor's plus this.
+    grab_offset: DVec3,
 }
 
 impl Lane {
@@ -42,6 +45,7 @@ impl Lane {
             frame_timings: StageTimings::default(),
             frame_steps: 0,
             plot: VecDeque::new(),
+            grab_offset: DVec3::ZERO,
         }
     }
 
@@ -395,26 +399,31 @@ impl Session {
         }
     }
 
-    /// Starts pulling `local_point` (body space) of `body` towards `target` in every world;
-    /// false when the body cannot move.
+    /// Starts pulling `local_point` (body space) of `body` in every world, from where that
+    /// point is in each (`target`: where it is in the world it was picked in); false when the
+    /// body cannot move. Compared worlds drift apart, so each world's body keeps its own
+    /// offset from the cursor and every drag moves them alike: one target for all pulled the
+    /// other world's body onto this one's, and a paused click moved it there at once. A click
+    /// alone changes no pose, and keeps a rewound history's future.
     pub fn grab(&mut self, body: usize, local_point: DVec3, target: DVec3) -> bool {
         let hertz = self.grab_hertz;
         let mut any = false;
         for lane in &mut self.lanes {
-            any |= grab::attach(&mut lane.world, body, local_point, target, hertz);
-        }
-        if any && !self.playing {
-            self.drag_grab(target);
+            let point =
+                (lane.world.bodies.get(body)).map_or(target, |b| b.world_point(local_point));
+            lane.grab_offset = point - target;
+            any |= grab::attach(&mut lane.world, body, local_point, point, hertz);
         }
         any
     }
 
-    /// Moves the grab's target. While paused, the grabbed bodies are moved there directly and
-    /// the history's current state becomes the edited one.
+    /// Moves the grab's target to `target` (each world's offset by where its body was
+    /// grabbed). While paused, the grabbed bodies are moved there directly and the history's
+    /// current state becomes the edited one.
     pub fn drag_grab(&mut self, target: DVec3) {
         let hertz = self.grab_hertz;
         for lane in &mut self.lanes {
-            grab::retarget(&mut lane.world, target, hertz);
+            grab::retarget(&mut lane.world, target + lane.grab_offset, hertz);
             if !self.playing {
                 grab::place(&mut lane.world);
             }

@@ -43,7 +43,7 @@ pub struct Span {
 pub struct Timeline {
     entries: VecDeque<Entry>,
     bytes: usize,
-    /// Most bytes the entries may hold; the oldest go first. The newest entry is always kept.
+    /// Most bytes the entries may hold; the oldest go first. The cursor's entry is always kept.
     budget: usize,
     /// Index of the entry the worlds are at.
     cursor: usize,
@@ -169,12 +169,19 @@ impl Timeline {
         }
     }
 
-    /// Drops the oldest entries until the rest fit the budget, keeping the newest one.
+    /// Drops entries until the rest fit the budget, never the one the worlds are at: the oldest
+    /// first, then, rewound to the oldest left, the newest. (Dropping the cursor's own entry
+    /// left the cursor on a later state than the worlds', and resuming wrote a history out of
+    /// order.)
     fn evict(&mut self) {
         while self.bytes > self.budget && self.entries.len() > 1 {
-            let dropped = self.entries.pop_front().expect("more than one entry");
-            self.bytes -= dropped.bytes;
-            self.cursor = self.cursor.saturating_sub(1);
+            let dropped = if self.cursor > 0 {
+                self.cursor -= 1;
+                self.entries.pop_front()
+            } else {
+                self.entries.pop_back()
+            };
+            self.bytes -= dropped.expect("more than one entry").bytes;
         }
     }
 }
