@@ -343,6 +343,12 @@ fn mesh_file_errors() {
         Some(12),
         "unknown section 'Bogus'",
     );
+    expect(
+        mesh(&TET.replace("End", "Normals 1")),
+        "m.mesh",
+        Some(12),
+        "section 'Normals' is Medit's but tumble does not read it",
+    );
 }
 
 /// Meshes that parse but are no solid (flat, too large or too small to measure, empty), and two
@@ -770,7 +776,7 @@ fn constraint_file_errors() {
         load(&dir, scene, Some("1\n0 0 2 0 1 1\n")),
         "s-constraints.txt",
         Some(2),
-        "body index 2 is out of range",
+        "body index 2 is out of range: the scene has 2 bodies (indices count from 0",
     );
     expect(
         load(&dir, scene, Some("1\n0 0 1 4 1 1\n")),
@@ -1130,10 +1136,16 @@ fn cli_refuses_an_output_it_cannot_write_before_running() {
     let folder = dir.0.join("a-folder");
     std::fs::create_dir(&folder).unwrap();
     let missing = dir.0.join("no-such-folder").join("t.csv");
+    // A name ending in a separator is a folder's, there or not.
+    let slashed = std::path::PathBuf::from(format!("{}/", dir.0.join("new-folder").display()));
     for (target, words) in [
         (
             &folder,
             format!("cannot write {}: it is a folder", folder.display()),
+        ),
+        (
+            &slashed,
+            format!("cannot write {}: it names a folder", slashed.display()),
         ),
         (
             &missing,
@@ -1365,7 +1377,7 @@ fn run_help_names_the_scenes_and_the_defaults() {
         ),
         ("Constraint tolerance (coursework solver)", d.tolerance),
         ("bounce with e = 0", d.restitution_threshold),
-        ("longer than 1/200 s)", d.substeps as f64),
+        ("longer than 1/80 s)", d.substeps as f64),
     ] {
         let said = format!("{flag} [default: {value}");
         assert!(help.contains(&said), "--help lacks '{said}'");

@@ -54,11 +54,17 @@ pub(crate) fn json_object(value: &serde_json::Value) -> serde_json::Map<String, 
     value.as_object().cloned().unwrap_or_default()
 }
 
-/// `contents` into `path`, an error naming the file.
+/// `contents` into `path`, whole or not at all ([`crate::io::AtomicFile`]: a run stopped
+/// midway leaves the last report whole), an error naming the file.
 #[cfg(feature = "bench")]
 pub fn write_named(path: &std::path::Path, contents: impl AsRef<[u8]>) -> anyhow::Result<()> {
     use anyhow::Context;
-    std::fs::write(path, contents).with_context(|| format!("cannot write {}", path.display()))
+    use std::io::Write;
+    let mut file = crate::io::AtomicFile::create(path)?;
+    file.writer()
+        .write_all(contents.as_ref())
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    file.commit()
 }
 
 /// No progress shown.

@@ -60,12 +60,26 @@ fn draw_legend<DB: DrawingBackend>(
     Ok(())
 }
 
-/// Writes an SVG plot with logarithmic axes; non-positive values are dropped.
+/// Writes an SVG plot with logarithmic axes; non-positive values are dropped. Drawn in memory
+/// and written whole ([`super::write_named`]); an error names the file.
 pub fn log_log_plot(
     path: &Path,
     title: &str,
     x_label: &str,
     y_label: &str,
+    series: &[Series],
+) -> anyhow::Result<()> {
+    use anyhow::Context;
+    let mut svg = String::new();
+    draw_log_log(&mut svg, (title, x_label, y_label), series)
+        .with_context(|| format!("cannot draw {}", path.display()))?;
+    super::write_named(path, svg)
+}
+
+/// [`log_log_plot`]'s drawing, into `svg`.
+fn draw_log_log(
+    svg: &mut String,
+    (title, x_label, y_label): (&str, &str, &str),
     series: &[Series],
 ) -> anyhow::Result<()> {
     let all: Vec<(f64, f64)> = series
@@ -81,7 +95,7 @@ pub fn log_log_plot(
         (x0, x1, y0, y1) = (1.0, 10.0, 1.0, 10.0);
     }
     let (x0, x1, y0, y1) = (x0 / 1.5, x1 * 1.5, y0 / 1.5, y1 * 1.5);
-    let root = SVGBackend::new(path, (900 + LEGEND_WIDTH, 600)).into_drawing_area();
+    let root = SVGBackend::with_string(svg, (900 + LEGEND_WIDTH, 600)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| anyhow::anyhow!("{e}"))?;
     let (plot, legend) = root.split_horizontally(900);
     let mut chart = ChartBuilder::on(&plot)

@@ -88,8 +88,8 @@ pub fn run(args: &RunArgs) -> anyhow::Result<()> {
         .map(|path| TrajectoryOut::open(path, &world.inputs))
         .transpose()?;
     if let Some(out) = &mut trajectory {
-        trajectory::write_header(out.writer())?;
-        trajectory::write_rows(out.writer(), &world)?;
+        out.write(|w| trajectory::write_header(w))?;
+        out.write(|w| trajectory::write_rows(w, &world))?;
     }
     super::interrupt::install(true);
     let start = Instant::now();
@@ -152,11 +152,20 @@ impl TrajectoryOut {
         Ok(Self::File(tumble::io::AtomicFile::create(path)?))
     }
 
-    fn writer(&mut self) -> &mut dyn Write {
-        match self {
-            Self::File(file) => file.writer(),
-            Self::Stdout(out) => out,
-        }
+    /// Writes with `write`; an error names where the trajectory goes (a full disk, a closed
+    /// pipe: the bare OS error named no file).
+    fn write(
+        &mut self,
+        write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+    ) -> anyhow::Result<()> {
+        let (out, to): (&mut dyn Write, String) = match self {
+            Self::File(file) => {
+                let to = file.path().display().to_string();
+                (file.writer(), to)
+            }
+            Self::Stdout(out) => (out, "standard output".into()),
+        };
+        write(out).map_err(|e| anyhow::anyhow!("writing the trajectory to {to}: {e}"))
     }
 
     /// The file renamed into place, or standard output flushed.
@@ -204,7 +213,7 @@ fn steps_until_interrupted(
         );
         summary.add_step(world, stats);
         if let Some(out) = trajectory.as_deref_mut() {
-            trajectory::write_rows(out.writer(), world)?;
+            out.write(|w| trajectory::write_rows(w, world))?;
         }
         if k % 64 == 0 {
             bar.set_position(k);

@@ -29,8 +29,19 @@ pub fn check_output_path(path: &Path) -> anyhow::Result<PathBuf> {
             .with_context(|| format!("cannot write {shown}: cannot follow the link"))?,
         _ => path.to_path_buf(),
     };
+    // `out/` names a folder whether or not one is there (where none is, the run went to its
+    // end and then failed to move its file into place).
+    let folder_name = path
+        .as_os_str()
+        .to_string_lossy()
+        .ends_with(std::path::is_separator);
     match std::fs::metadata(&target) {
         Ok(meta) if meta.is_dir() => anyhow::bail!("cannot write {shown}: it is a folder"),
+        _ if folder_name => {
+            anyhow::bail!(
+                "cannot write {shown}: it names a folder (ends in a separator), not a file"
+            )
+        }
         Ok(meta) if !meta.is_file() => anyhow::bail!(
             "cannot write {shown}: it is not a regular file (a device, a pipe or a socket), and writing would replace it"
         ),
@@ -194,6 +205,11 @@ impl AtomicFile {
 
     pub fn writer(&mut self) -> &mut BufWriter<File> {
         &mut self.writer
+    }
+
+    /// The file it becomes (through a link, the file the link leads to): what errors name.
+    pub fn path(&self) -> &Path {
+        &self.path
     }
 
     /// Flushes and renames into place.

@@ -42,7 +42,11 @@ pub fn parse_medit(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
         // Each section of records gives its count; the two header keywords none.
         let count = match keyword.as_str() {
             "meshversionformatted" | "dimension" => {
-                let (value, line) = tokens.index("a number after the keyword")?;
+                let (value, line) = tokens.index(if keyword == "dimension" {
+                    "a number after Dimension"
+                } else {
+                    "a number after MeshVersionFormatted"
+                })?;
                 if keyword == "dimension" && value != 3 {
                     return Err(tokens.error(
                         line,
@@ -223,6 +227,20 @@ fn skip_records(tokens: &mut Tokens, what: &str, per_record: usize) -> Result<us
     Ok(count)
 }
 
+/// Sections of the Medit format that tumble refuses rather than skip (lower case): skipping
+/// them would need their record widths, and a tet mesh does not need them.
+const MEDIT_SECTIONS_NOT_READ: [&str; 9] = [
+    "normals",
+    "normalatvertices",
+    "tangents",
+    "tangentatvertices",
+    "quadrilaterals",
+    "hexahedra",
+    "prisms",
+    "corners",
+    "ridges",
+];
+
 /// A word where a section keyword should be, `(written, line)`. A number there is most often
 /// a record past the count of the section before (`last`: its keyword, count line and count):
 /// a record added by hand without raising the count.
@@ -236,6 +254,10 @@ fn unknown_section(
         Some((section, count_line, count)) if written.parse::<f64>().is_ok() => format!(
             "a number, '{written}', where a section keyword should be ({expected}): is the \
              {section} count on line {count_line} ({count}) smaller than the records under it?"
+        ),
+        _ if MEDIT_SECTIONS_NOT_READ.contains(&written.to_ascii_lowercase().as_str()) => format!(
+            "section '{written}' is Medit's but tumble does not read it ({expected}): a body is \
+             its vertices and tetrahedra"
         ),
         _ => format!("unknown section '{written}' ({expected})"),
     };

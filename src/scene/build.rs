@@ -485,8 +485,8 @@ fn build_constraints(
                     file,
                     Some(r.line),
                     format!(
-                        "body index {body} is out of range: the scene has {} bodies",
-                        bodies.len()
+                        "body index {body} is out of range: the scene has {} (indices count from 0, in the scene file's order)",
+                        crate::io::counted(bodies.len() as u64, "body", "bodies")
                     ),
                 ));
             }
@@ -497,7 +497,8 @@ fn build_constraints(
                     file,
                     Some(r.line),
                     format!(
-                        "vertex index {vertex} is out of range: body {body}'s mesh has {count} vertices"
+                        "vertex index {vertex} is out of range: body {body}'s mesh has {} (indices count from 0)",
+                        crate::io::counted(count as u64, "vertex", "vertices")
                     ),
                 ));
             }
