@@ -589,6 +589,41 @@ fn off_surfaces_must_be_closed() {
     assert!(whole.warnings.is_empty() && seamed.warnings.is_empty());
 }
 
+/// Two tetrahedra that overlap weigh their common part twice: loaded, with a warning naming
+/// the share of the hull the sum of their volumes makes.
+#[test]
+fn a_mesh_that_overlaps_itself_is_named() {
+    let dir = Dir::new("overlap");
+    // The unit corner tetrahedron, and another on its base with its apex inside the first:
+    // 1/6 + 0.1/6 of a hull of 1/6.
+    dir.write(
+        "t.mesh",
+        "MeshVersionFormatted 1\nDimension 3\nVertices\n5\n0 0 0 0\n1 0 0 0\n0 1 0 0\n0 0 1 0\n\
+         0.1 0.1 0.1 0\nTetrahedra\n2\n1 2 3 4 0\n1 2 3 5 0\nEnd\n",
+    );
+    let world = load(&dir, "1\nt.mesh 1 0 0 5 0 1 0 0 0\n", None).unwrap();
+    assert!(
+        world.warnings.len() == 1
+            && world.warnings[0]
+                .contains("t.mesh: the mesh overlaps itself (its volume is 110.0 %"),
+        "{:?}",
+        world.warnings
+    );
+    let whole = load(
+        &dir_with_tet("overlap-none"),
+        "1\nt.mesh 1 0 0 5 0 1 0 0 0\n",
+        None,
+    );
+    assert!(whole.unwrap().warnings.is_empty());
+}
+
+/// A folder holding the unit corner tetrahedron as `t.mesh`.
+fn dir_with_tet(name: &str) -> Dir {
+    let dir = Dir::new(name);
+    dir.write("t.mesh", TET);
+    dir
+}
+
 /// A fixed body's density weighs nothing, so any value loads; a negative one is named on its
 /// line, as a sign typed by mistake, and zero (a coursework habit for fixed bodies) is not.
 #[test]
@@ -777,6 +812,12 @@ fn constraint_file_errors() {
         "s-constraints.txt",
         Some(2),
         "body index 2 is out of range: the scene has 2 bodies (indices count from 0",
+    );
+    expect(
+        load(&dir, scene, Some("1\n0 0 1 0 1 1e308\n")),
+        "s-constraints.txt",
+        Some(2),
+        "the bound 1e308 times the starting distance 3 is too large a length",
     );
     expect(
         load(&dir, scene, Some("1\n0 0 1 4 1 1\n")),

@@ -229,10 +229,23 @@ fn three_figures(x: f64) -> String {
 /// 96.7 % of its hull), and the course simulates it as it is.
 const CONVEX: f64 = 0.9;
 
+/// Above this share of its hull's volume a mesh's solid overlaps itself: a convex solid fills
+/// its hull to rounding, a dented one less.
+const OVERLAPPING: f64 = 1.0 + 1e-6;
+
 /// A warning for a mesh that is not convex: the coursework's bodies are; tumble collides the
-/// hull and weighs the mesh, so such a body rests and tumbles as neither would.
+/// hull and weighs the mesh, so such a body rests and tumbles as neither would. Or for one
+/// whose solid holds more than its hull (tetrahedra that overlap, or two closed surfaces one
+/// inside the other): its volume, mass and inertia count the overlap twice.
 fn convexity_warning(shape: &Shape, mesh_path: &Path) -> Option<String> {
     let share = shape.convexity();
+    if share > OVERLAPPING {
+        return Some(format!(
+            "{}: the mesh overlaps itself (its volume is {:.1} % of its convex hull's: tetrahedra or surfaces counted twice): mass and inertia count the overlap twice",
+            mesh_path.display(),
+            100.0 * share
+        ));
+    }
     (share < CONVEX).then(|| {
         format!(
             "{}: the mesh is not convex (its volume is {:.1} % of its convex hull's): collisions use the hull, mass and inertia the mesh",
@@ -535,14 +548,28 @@ fn build_constraints(
                 r.body2
             ));
         }
-        out.extend(DistanceConstraint::lower_and_upper(
+        let pair = DistanceConstraint::lower_and_upper(
             bodies,
             shapes,
             (r.body1, r.vertex1),
             (r.body2, r.vertex2),
             r.lower,
             r.upper,
-        ));
+        );
+        // Bounds are fractions of the starting distance: 1e308 of a distance of 2 is no length
+        // (its bodies blew up in the first step and were frozen).
+        if let Some(c) = pair.iter().find(|c| !c.reference.is_finite()) {
+            let bound = if c.is_upper { r.upper } else { r.lower };
+            return Err(LoadError::new(
+                file,
+                Some(r.line),
+                format!(
+                    "the bound {bound:e} times the starting distance {} is too large a length (bounds are fractions of the distance the scene starts at)",
+                    c.rest_length
+                ),
+            ));
+        }
+        out.extend(pair);
     }
     Ok(out)
 }

@@ -84,8 +84,10 @@ impl GifEncoder {
             height as u16,
             &[],
         )
-        .with_context(|| format!("cannot write {}", tmp.path().display()))?;
-        encoder.set_repeat(gif::Repeat::Infinite)?;
+        .with_context(|| format!("cannot write {}", path.display()))?;
+        encoder
+            .set_repeat(gif::Repeat::Infinite)
+            .with_context(|| format!("cannot write {}", path.display()))?;
         Ok(GifEncoder {
             encoder,
             path: path.to_path_buf(),
@@ -113,14 +115,14 @@ impl Encoder for GifEncoder {
         self.centiseconds = end;
         self.encoder
             .write_frame(&frame)
-            .with_context(|| format!("cannot write {}", self.tmp.path().display()))
+            .with_context(|| format!("cannot write {}", self.path.display()))
     }
 
     fn finish(self: Box<Self>) -> anyhow::Result<()> {
         let GifEncoder {
             encoder, path, tmp, ..
         } = *self;
-        let written = || format!("cannot write {}", tmp.path().display());
+        let written = || format!("cannot write {}", path.display());
         let mut writer = encoder.into_inner().with_context(written)?;
         writer.flush().with_context(written)?;
         drop(writer);
@@ -290,9 +292,12 @@ impl Mp4Encoder {
 impl Encoder for Mp4Encoder {
     fn frame(&mut self, image: &mut Image) -> anyhow::Result<()> {
         let stdin = self.stdin.as_mut().expect("open until finish");
-        stdin
-            .write_all(&image.rgba)
-            .context("ffmpeg stopped accepting frames (see its messages above)")
+        stdin.write_all(&image.rgba).with_context(|| {
+            format!(
+                "ffmpeg stopped accepting the frames of {} (see its messages above)",
+                self.path.display()
+            )
+        })
     }
 
     fn finish(mut self: Box<Self>) -> anyhow::Result<()> {
