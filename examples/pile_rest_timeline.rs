@@ -1,6 +1,6 @@
 //! Where `bench accuracy`'s pile_rest spends its run time, second by simulated second: the
 //! accurate preset and Rapier on the same pile (pile-200 at friction 0.5 and restitution 0.2,
-//! as the bench sets it), stepped in turn inside the thread pool as the bench steps them, with
+//! as the bench sets it), stepped in turn on one thread as the bench steps them, with
 //! each engine's run time and sleeping bodies at the end of every simulated second, then the
 //! bench's two metrics of each pile at the end (another BODIES draws another pile).
 //!
@@ -32,7 +32,16 @@ fn main() -> ExitCode {
     let mut world = pile_rest_world(bodies, settings);
     let mut mirror = world.clone();
     let rapier = RapierScene::from_world(&world, true);
-    let (rows, rapier) = world.stepping(move |world| timeline(world, rapier, dt));
+    // One thread, as `bench accuracy` times both engines (Rapier's default build has one).
+    let one_thread = match rayon::ThreadPoolBuilder::new().num_threads(1).build() {
+        Ok(pool) => pool,
+        Err(e) => {
+            eprintln!("cannot start a thread: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let (rows, rapier) =
+        one_thread.install(|| world.stepping(move |world| timeline(world, rapier, dt)));
     print(&rows, bodies);
     // Rapier's poses and velocities measured by the bench's measure, as the bench does.
     rapier.copy_into(&mut mirror);

@@ -51,9 +51,10 @@ enum BenchCommand {
     /// ms/step against N for generated scenes: the coursework's loop, both of tumble's solvers
     /// on 1 and all cores, and Rapier in a build with --features compare-rapier.
     Scale(cli::bench::ScaleArgs),
-    /// Error against run time per scenario, setting combination and time step (run time: the
-    /// fastest of a job's runs: three, and more until its steps took 0.1 s, at most 15,
-    /// interleaved with the other combinations' at the same scenario and dt).
+    /// Error against run time per scenario, setting combination and time step (run time, on one
+    /// thread for every engine, as Rapier's default build runs: the fastest of a job's runs:
+    /// three, and more until its steps took 0.1 s, at most 15, interleaved with the other
+    /// combinations' at the same scenario and dt).
     Accuracy(cli::bench::AccuracyArgs),
     /// The tower, a stack of ten built at rest and the two chains for 100,000 steps (--steps):
     /// drift, violation, energy. A quick look: --steps 5000.

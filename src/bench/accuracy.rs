@@ -215,8 +215,10 @@ const MAX_RUNS: usize = 15;
 /// to three seconds) by 10-20 % (the soft step at dt 0.04: 18.7 ms per simulated second in one
 /// sweep, 14.8-16.6 in five runs after it). The fastest is the one least disturbed by the rest
 /// of the machine.
-fn measure_together(jobs: &[Job]) -> Vec<scenarios::Outcome> {
-    let run = |job: &Job| scenarios::run_with(job.scenario, &job.settings, job.engine);
+fn measure_together(jobs: &[Job], one_thread: &rayon::ThreadPool) -> Vec<scenarios::Outcome> {
+    let run = |job: &Job| {
+        one_thread.install(|| scenarios::run_with(job.scenario, &job.settings, job.engine))
+    };
     let seconds =
         |job: &Job, o: &scenarios::Outcome| o.wall_per_sim_second * job.scenario.duration();
     let mut outcomes: Vec<scenarios::Outcome> = jobs.iter().map(run).collect();
@@ -302,17 +304,22 @@ pub fn run(config: &AccuracyConfig, progress: &dyn Progress) -> anyhow::Result<A
     let mut results = AccuracyResults::new();
     let mut csv =
         String::from("scenario,combination,dt,wall_seconds_per_simulated_second,metric,value\n");
+    // Every engine on one thread: Rapier's default build (the one compared) is single-threaded,
+    // and pile_rest, the one scenario large enough to split its step, ran on every core against
+    // it until stop 76 (1.4-1.5x Rapier's time on one core, 1.3x on two). `bench scale` measures
+    // what more cores give.
+    let one_thread = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     // The first job of a process pays one-off costs (the thread pool starting, first page
     // faults): run once unmeasured, free fall with the coursework at dt 0.04 took 0.058 ms per
     // simulated second against 0.037 at dt 0.02.
     if let Some(first) = jobs.first() {
-        scenarios::run_with(first.scenario, &first.settings, first.engine);
+        one_thread.install(|| scenarios::run_with(first.scenario, &first.settings, first.engine));
     }
     let mut done = 0;
     for together in jobs.chunk_by(|a, b| (&a.name, a.dt) == (&b.name, b.dt)) {
         let first = &together[0];
         progress.message(&format!("{} dt={}", first.name, first.dt));
-        for (job, outcome) in together.iter().zip(measure_together(together)) {
+        for (job, outcome) in together.iter().zip(measure_together(together, &one_thread)) {
             record(job, &outcome, &mut results, &mut csv);
         }
         done += together.len();
