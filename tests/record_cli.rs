@@ -34,6 +34,13 @@ fn require_gpu() -> bool {
     std::env::var("TUMBLE_REQUIRE_GPU").is_ok_and(|v| v == "1")
 }
 
+/// Skips a test for want of a tool (`why`), printing why; fails instead under
+/// `TUMBLE_REQUIRE_GPU=1`, where `.ci/run` has installed the tools with the driver.
+fn skip_or_fail(why: &str) {
+    assert!(!require_gpu(), "TUMBLE_REQUIRE_GPU=1 but {why}");
+    eprintln!("skipping: {why}");
+}
+
 /// Runs a rendering command; None (skip) when it failed for want of a GPU adapter.
 fn run_rendering(command: &mut Command) -> Option<Output> {
     let output = command.output().expect("tumble runs");
@@ -367,8 +374,7 @@ fn frames_never_replace_an_input() {
 #[test]
 fn record_mp4_when_ffmpeg_is_installed() {
     if !tumble::viewer::record::ffmpeg_on_path() {
-        eprintln!("skipping: ffmpeg is not on PATH");
-        return;
+        return skip_or_fail("ffmpeg is not on PATH");
     }
     let dir = scratch("mp4");
     let out = dir.join("cube.mp4");
@@ -578,8 +584,7 @@ fn on_path(program: &str) -> bool {
 #[test]
 fn view_window_under_xvfb() {
     if !on_path("xvfb-run") {
-        eprintln!("skipping: xvfb-run is not installed");
-        return;
+        return skip_or_fail("xvfb-run is not installed");
     }
     let dir = scratch("view");
     let shot = dir.join("view.png");
@@ -635,8 +640,7 @@ fn check_screenshot(path: &Path) {
 #[test]
 fn view_compare_under_xvfb() {
     if !on_path("xvfb-run") {
-        eprintln!("skipping: xvfb-run is not installed");
-        return;
+        return skip_or_fail("xvfb-run is not installed");
     }
     let dir = scratch("view-compare");
     let shot = dir.join("compare.png");
