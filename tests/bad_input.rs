@@ -476,11 +476,13 @@ fn off_file_errors() {
     // Every face twice: each edge pairs up with a copy's, but the volume would count twice.
     let corners = "0 0 0\n1 0 0\n0 1 0\n0 0 1\n";
     let twice: Vec<&str> = TET_FACES.iter().chain(&TET_FACES).copied().collect();
-    expect(off(&tet_off(corners, &twice)), "m.off", None, "twice");
+    // Faces from line 7: the fifth (line 11) repeats the first.
+    let said = "the triangle of vertices 0, 2, 1 (0-based) twice (the face on line 7 has it too";
+    expect(off(&tet_off(corners, &twice)), "m.off", Some(11), said);
     // The same face turned (the same vertices from another corner) is the same face.
     let turned = ["3 2 1 0", "3 1 3 0", "3 3 2 0", "3 2 3 1"];
     let twice: Vec<&str> = TET_FACES.iter().chain(&turned).copied().collect();
-    expect(off(&tet_off(corners, &twice)), "m.off", None, "twice");
+    expect(off(&tet_off(corners, &twice)), "m.off", Some(11), "twice");
 }
 
 /// A surface of two closed parts, one wound inside out against the other, pairs every edge
@@ -541,11 +543,12 @@ fn off_surfaces_must_be_closed() {
     let corners = "0 0 0\n1 0 0\n0 1 0\n0 0 1\n";
     let whole = off(&tet_off(corners, &TET_FACES)).unwrap();
     assert!((whole.bodies[0].mass - 1.0).abs() < 1e-12, "6 x 1/6");
+    // Faces from line 7; named on the last face concerned.
     expect(
         off(&tet_off(corners, &TET_FACES[..3])),
         "m.off",
-        None,
-        "not closed: the edge between vertices 1 and 2",
+        Some(7),
+        "not closed: the edge between vertices 1 and 2 (0-based) has a face on one side only",
     );
     expect(
         off(&tet_off(
@@ -553,8 +556,18 @@ fn off_surfaces_must_be_closed() {
             &[TET_FACES[0], TET_FACES[1], TET_FACES[2], "3 1 3 2"],
         )),
         "m.off",
-        None,
-        "wound the same way",
+        Some(10),
+        "the edge between vertices 1 and 2 (0-based), this one and the one on line 7, are wound the same way",
+    );
+    // The same on a seam (vertex 4 at vertex 1's point): named as the face writes it.
+    expect(
+        off(&tet_off(
+            &format!("{corners}1 0 0\n"),
+            &[TET_FACES[0], TET_FACES[1], TET_FACES[2], "3 4 3 2"],
+        )),
+        "m.off",
+        Some(11),
+        "the edge between vertices 2 and 4 (0-based), this one and the one on line 8, are wound",
     );
     // The last face on a copy of vertex 1 (index 4) at the same point: a seam, still closed.
     let seamed = off(&tet_off(

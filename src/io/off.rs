@@ -47,6 +47,8 @@ pub fn parse_off(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
         vertices.push(DVec3::new(x, y, z));
     }
     let mut triangles = Vec::with_capacity(face_count);
+    // The line of each triangle's face (a polygon's fan shares its face's).
+    let mut lines = Vec::with_capacity(face_count);
     for face in 0..face_count {
         let line = tokens.line();
         // A vertex count too small shows at the first face: the next vertex is read as one.
@@ -75,14 +77,15 @@ pub fn parse_off(file: &Path, text: &str) -> Result<TetMesh, LoadError> {
         }
         for k in 1..corners - 1 {
             triangles.push([polygon[0], polygon[k], polygon[k + 1]]);
+            lines.push(line);
         }
     }
     tokens.expect_end(&super::counted(face_count as u64, "face", "faces"))?;
     if triangles.is_empty() {
         return Err(LoadError::new(file, None, "the surface has no faces"));
     }
-    if let Some(problem) = unmatched_edge(&vertices, &triangles) {
-        return Err(LoadError::new(file, None, problem));
+    if let Some((line, problem)) = unmatched_edge(&vertices, (&triangles, &lines)) {
+        return Err(tokens.error(line, problem));
     }
     fan_tetrahedralise(file, vertices, triangles)
 }
@@ -114,8 +117,12 @@ fn with_vertex_hint(tokens: &Tokens, error: LoadError, first: Option<(usize, usi
 /// closed, consistently wound surface; an open one would be simulated with part of its mass, a
 /// closed part listed twice (every edge paired with its copy's) with twice it. Vertices at the
 /// same point are one vertex, so a surface cut into patches along seams (as exporters write
-/// them for normals) is still closed.
-fn unmatched_edge(vertices: &[DVec3], triangles: &[[u32; 3]]) -> Option<String> {
+/// them for normals) is still closed. Named on the line of the last face concerned (`lines`:
+/// each triangle's), with the vertex indices as that face writes them.
+fn unmatched_edge(
+    vertices: &[DVec3],
+    (triangles, lines): (&[[u32; 3]], &[usize]),
+) -> Option<(usize, String)> {
     let weld = welded(vertices);
     let corners = |t: &[u32; 3]| t.map(|i| weld[i as usize]);
     // Each face turned to start at its least vertex, so the same face wound the same way has
@@ -129,10 +136,17 @@ fn unmatched_edge(vertices: &[DVec3], triangles: &[[u32; 3]]) -> Option<String> 
             (false, false) => Ok([c, a, b]),
         }
     });
-    if let Some((_, again)) = super::first_repeat(same_way) {
-        let [a, b, c] = corners(&triangles[again]);
-        return Some(format!(
-            "the surface has the triangle of vertices {a}, {b}, {c} (0-based) twice: its volume would count twice"
+    if let Some((first, again)) = super::first_repeat(same_way) {
+        let [a, b, c] = triangles[again];
+        let other = match lines[first] == lines[again] {
+            true => "this face covers it twice".to_string(),
+            false => format!("the face on line {} has it too", lines[first]),
+        };
+        return Some((
+            lines[again],
+            format!(
+                "the surface has the triangle of vertices {a}, {b}, {c} (0-based) twice ({other}, at the same points and wound the same way): its volume would count twice"
+            ),
         ));
     }
     // Each edge a -> b counts +1 on (a, b) for a < b and -1 otherwise: 0 when its faces pair up.
@@ -147,16 +161,61 @@ fn unmatched_edge(vertices: &[DVec3], triangles: &[[u32; 3]]) -> Option<String> 
             }
         }
     }
-    let ((a, b), count) = balance.into_iter().filter(|&(_, c)| c != 0).min()?;
-    Some(if count % 2 != 0 {
+    let (edge, count) = balance.into_iter().filter(|&(_, c)| c != 0).min()?;
+    let (line, (a, b), others) = faces_on_edge(edge, &weld, (triangles, lines));
+    let problem = if count % 2 == 0 && others.is_empty() {
+        format!(
+            "this face's triangles on the edge between vertices {a} and {b} (0-based) are wound the same way: a closed surface's faces are all wound one way round"
+        )
+    } else if count % 2 == 0 {
+        format!(
+            "the faces on the edge between vertices {a} and {b} (0-based), this one and {others}, are wound the same way: a closed surface's faces are all wound one way round"
+        )
+    } else if others.is_empty() {
         format!(
             "the surface is not closed: the edge between vertices {a} and {b} (0-based) has a face on one side only"
         )
     } else {
         format!(
-            "the faces on the edge between vertices {a} and {b} (0-based) are wound the same way: a closed surface's faces are all wound one way round"
+            "the surface is not closed: the edge between vertices {a} and {b} (0-based) has this face and {others}, where a closed surface has one on each side"
         )
-    })
+    };
+    Some((line, problem))
+}
+
+/// The faces whose triangles hold the welded `edge`: the last one's line and the edge's
+/// vertices as it writes them (smaller first), and the others' lines in words ("the one on line
+/// 7", "those on lines 7 and 9"; empty for none).
+fn faces_on_edge(
+    edge: (u32, u32),
+    weld: &[u32],
+    (triangles, lines): (&[[u32; 3]], &[usize]),
+) -> (usize, (u32, u32), String) {
+    let mut on_edge = triangles.iter().zip(lines).filter_map(|(t, &line)| {
+        (0..3).find_map(|k| {
+            let (p, q) = (t[k], t[(k + 1) % 3]);
+            let (a, b) = (weld[p as usize], weld[q as usize]);
+            ((a, b) == edge || (b, a) == edge).then_some((line, (p.min(q), p.max(q))))
+        })
+    });
+    let first = on_edge.next().expect("an unbalanced edge has a face");
+    let mut found: Vec<(usize, (u32, u32))> = std::iter::once(first).chain(on_edge).collect();
+    let (line, written) = found.pop().expect("one at least");
+    let mut others: Vec<usize> = found
+        .iter()
+        .map(|&(l, _)| l)
+        .filter(|&l| l != line)
+        .collect();
+    others.dedup();
+    let others = match others.as_slice() {
+        [] => String::new(),
+        [one] => format!("the one on line {one}"),
+        [rest @ .., last] => {
+            let rest: Vec<String> = rest.iter().map(|l| l.to_string()).collect();
+            format!("those on lines {} and {last}", rest.join(", "))
+        }
+    };
+    (line, written, others)
 }
 
 /// Each vertex's first index at its point: vertices at the same point are one vertex.
