@@ -170,8 +170,8 @@ pub struct Run {
 /// accuracy`'s has one thread), for pile_rest, or else on the calling thread. Handed over once
 /// a step from outside the pool, pile_rest under the soft step took 1.4-1.7x the time of an
 /// earlier run of the same bits on another machine, where every other scenario (small enough
-/// to step on the calling thread) and Rapier took the same or less. The world's stage timers are off ([`World::time_stages`]), as Rapier's are by
-/// default: nothing here reads them.
+/// to step on the calling thread) and Rapier took the same or less. The world's stage timers
+/// are off ([`World::time_stages`]), as Rapier's are by default: nothing here reads them.
 fn simulate(
     engine: Engine,
     world: &mut World,
