@@ -495,6 +495,23 @@ fn record_errors_are_clear() {
             && !stderr.contains("warning"),
         "{stderr}"
     );
+    // The same for the compared world's settings.
+    let output = tumble()
+        .args(["record", "cube", "--compare", "--dt 0", "-o"])
+        .arg(dir.join("d.gif"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("the time step must be positive to record, got 0")
+            && !stderr.contains("warning"),
+        "{stderr}"
+    );
+    // More frames than a recording makes, refused before it begins.
+    let long = ["record", "cube", "--seconds", "2e6", "-o"];
+    let words = "recording 2e6 s at 30 fps makes 6.0e7 frames, more than 1e7";
+    fails_saying(tumble().args(long).arg(dir.join("long.gif")), words);
 }
 
 /// `view --screenshot` is checked as the other outputs are, before any window opens: not over

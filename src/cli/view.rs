@@ -16,8 +16,18 @@ struct CompareFlags {
     settings: SettingsArgs,
 }
 
-/// Parses a `--compare` spec (also typed into the viewer's panel) into settings.
+/// Parses a `--compare` spec (also typed into the viewer's panel) into settings, printing the
+/// warnings they earn.
 pub fn parse_compare(spec: &str) -> Result<Settings, String> {
+    let (settings, notes) = compare_checked(spec)?;
+    for note in notes {
+        eprintln!("warning: --compare: {note}");
+    }
+    Ok(settings)
+}
+
+/// [`parse_compare`] without printing: the settings and their warnings.
+fn compare_checked(spec: &str) -> Result<(Settings, Vec<String>), String> {
     let mut words: Vec<&str> = spec.split_whitespace().collect();
     let preset = match words.first() {
         Some(&"accurate") => Some(true),
@@ -44,7 +54,7 @@ pub fn parse_compare(spec: &str) -> Result<Settings, String> {
     if let Some(accurate) = preset {
         flags.settings.accurate |= accurate;
     }
-    flags.settings.settings().map_err(|e| e.to_string())
+    flags.settings.checked().map_err(|e| e.to_string())
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -190,8 +200,11 @@ fn layout(ghost: bool) -> tumble::viewer::Layout {
 
 /// The settings of `--compare`, checked before anything opens.
 #[cfg(feature = "viewer")]
-fn compare_settings(spec: Option<&str>) -> anyhow::Result<Option<Settings>> {
-    spec.map(|spec| parse_compare(spec).map_err(|e| anyhow::anyhow!("--compare '{spec}': {e}")))
+/// The settings of `--compare` and their warnings, not printed: `view` leaves them to the app
+/// (which parses the spec again: printed here too, each came twice), `record` to after its own
+/// checks (printed first, `--dt 0`'s warning came before the refusal of it).
+fn compare_settings(spec: Option<&str>) -> anyhow::Result<Option<(Settings, Vec<String>)>> {
+    spec.map(|spec| compare_checked(spec).map_err(|e| anyhow::anyhow!("--compare '{spec}': {e}")))
         .transpose()
 }
 
@@ -286,7 +299,10 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     use tumble::viewer::{DrawOptions, OutputKind, RecordOptions};
     let kind = OutputKind::of(&args.output)?;
     let (settings, notes) = args.settings.checked()?;
-    let compare = compare_settings(args.comparison.compare.as_deref())?;
+    let (compare, compare_notes) = match compare_settings(args.comparison.compare.as_deref())? {
+        Some((settings, notes)) => (Some(settings), notes),
+        None => (None, Vec::new()),
+    };
     // Refused before the settings' warnings: `--dt 0` warned that nothing would move, then was
     // refused.
     let dts: Vec<f64> = std::iter::once(&settings)
@@ -296,6 +312,9 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     tumble::viewer::record::check_rates(args.seconds, args.fps, dts.iter().copied())?;
     for note in notes {
         eprintln!("warning: {note}");
+    }
+    for note in compare_notes {
+        eprintln!("warning: --compare: {note}");
     }
     warn_of_frames(kind, args.fps, &dts);
     let (width, height) = args.size.unwrap_or(if kind == OutputKind::Gif {

@@ -65,6 +65,10 @@ pub fn scene_bounds(world: &World) -> (DVec3, DVec3) {
 /// the GPU takes, leaves nothing to draw (`--camera 0,20,1e300` recorded empty frames).
 pub const DISTANCE_RANGE: (f64, f64) = (1e-3, 1e7);
 
+/// Largest coordinate a given camera target may have: within the `f32` the GPU takes, with
+/// room for the distance.
+pub const TARGET_LIMIT: f64 = 1e30;
+
 impl OrbitCamera {
     /// Keeps the angles, points at the scene and backs off until it all fits.
     pub fn frame(&mut self, world: &World, aspect: f64) {
@@ -187,6 +191,13 @@ impl OrbitCamera {
             self.distance = values[2];
         }
         if values.len() == 6 {
+            // In the `f32` the GPU takes, a target past 3.4e38 is infinite and every frame
+            // blank (`--camera 0,30,10,1e39,0,0`).
+            if values[3..].iter().any(|v| v.abs() > TARGET_LIMIT) {
+                return Err(format!(
+                    "--camera '{spec}': the target's coordinates must lie within {TARGET_LIMIT:e} scene units"
+                ));
+            }
             self.target = DVec3::new(values[3], values[4], values[5]);
         }
         Ok(())
@@ -241,6 +252,10 @@ mod tests {
         assert!(nan.contains("2, 3 or 6 finite numbers"), "{nan}");
         let far = cam.apply_spec("0,20,1e300").unwrap_err();
         assert!(far.contains("from 1e-3 to 1e7"), "{far}");
+        let off = cam.apply_spec("0,30,10,1e39,0,0").unwrap_err();
+        assert!(off.contains("within 1e30 scene units"), "{off}");
+        cam.apply_spec("0,30,10,1e30,0,0").unwrap();
+        assert!(cam.matrices(1.0).view_proj.is_finite());
     }
 
     /// At either end of the distance range the GPU's `f32` matrix still puts the target inside

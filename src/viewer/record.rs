@@ -514,6 +514,10 @@ const MIN_MP4_FPS: f64 = 0.01;
 /// Most steps a recording takes (of each world).
 const MAX_RECORD_STEPS: f64 = 1e8;
 
+/// Most frames a recording makes: 93 hours at 30 fps. `--seconds 2e6` at the defaults asked
+/// for 6e7 frames (a folder of PNGs to fill a disk), with no word before it began.
+const MAX_RECORD_FRAMES: f64 = 1e7;
+
 /// Rejects a length, frame rate and time steps (one a world) that cannot make a recording.
 pub fn check_rates(
     seconds: f64,
@@ -546,6 +550,14 @@ pub fn check_rates(
     anyhow::ensure!(
         fps.is_finite() && fps > 0.0 && fps <= 1000.0,
         "--fps must lie in (0, 1000], got {fps}"
+    );
+    let frames = seconds * fps;
+    anyhow::ensure!(
+        frames <= MAX_RECORD_FRAMES,
+        "recording {} s at {} fps makes {frames:.1e} frames, more than {MAX_RECORD_FRAMES:.0e}: \
+         record fewer --seconds or at a lower --fps",
+        crate::io::significant(seconds, 6),
+        crate::io::significant(fps, 6)
     );
     Ok(())
 }
