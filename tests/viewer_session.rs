@@ -372,6 +372,47 @@ fn a_paused_drag_moves_the_pose_in_every_world() {
     assert!((s.world().bodies[1].world_point(local) - target).length() < 1e-12);
 }
 
+/// A sleeping stack's bottom box dragged out while paused and let go: the boxes it held up wake
+/// and fall when play resumes (they were left asleep in the air), and a box held still by a
+/// grab stays awake (it slept at 0.5 s and was woken by the next step, again and again).
+#[test]
+fn a_moved_or_held_body_keeps_its_island_awake() {
+    let mut s = session("stack-3", Settings::accurate());
+    for _ in 0..200 {
+        s.step_once();
+    }
+    assert!(s.world().bodies.iter().all(|b| b.asleep), "the stack sleeps by 4 s");
+    s.pause();
+    let local = DVec3::ZERO;
+    let picked = s.world().bodies[0].position;
+    assert!(s.grab(0, local, picked));
+    s.drag_grab(picked + DVec3::new(5.0, 0.0, 0.0));
+    s.release_grab();
+    assert!(s.world().bodies.iter().all(|b| !b.asleep), "the island woke");
+    let top = s.world().bodies[2].position.y;
+    for _ in 0..25 {
+        s.step_once();
+    }
+    assert!(
+        s.world().bodies[2].position.y < top - 0.3,
+        "the top box falls: {} from {top}",
+        s.world().bodies[2].position.y
+    );
+    // Held still where it rests, for 3 s.
+    let mut s = session("stack-1", Settings::accurate());
+    let picked = s.world().bodies[0].position;
+    assert!(s.grab(0, local, picked));
+    for _ in 0..150 {
+        s.step_once();
+        assert!(!s.world().bodies[0].asleep, "asleep at {} s", s.world().time);
+    }
+    s.release_grab();
+    for _ in 0..100 {
+        s.step_once();
+    }
+    assert!(s.world().bodies[0].asleep, "let go, it sleeps again");
+}
+
 /// A click on a body while rewound, without a drag, keeps the history after it.
 #[test]
 fn a_click_while_rewound_keeps_the_future() {

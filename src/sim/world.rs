@@ -245,6 +245,15 @@ impl World {
         stats
     }
 
+    /// Wakes body `index` and the island it fell asleep in (soft step; a body awake, or out of
+    /// range, changes nothing): for a body the viewer grabs or moves while paused, which the
+    /// step would not see moved.
+    pub fn wake_island(&mut self, index: usize) {
+        if index < self.bodies.len() {
+            (self.soft_step).wake_island(&mut self.bodies, &self.constraints, index);
+        }
+    }
+
     /// Everything a later step depends on, to come back to it exactly ([`World::restore`]).
     pub fn snapshot(&self) -> WorldState {
         WorldState {

@@ -61,10 +61,11 @@ pub fn attach(
     true
 }
 
-/// Makes a grabbed body take part in the next steps. The core has no sleeping bodies yet; when
-/// it gets them, waking the body goes here, and every grab path calls it.
+/// Makes a grabbed body take part in the next steps: it and the island it sleeps in wake
+/// (every grab path calls this; the step wakes a grabbed body too, but a body moved while
+/// paused and let go before the next step was left asleep, and so were the bodies it held up).
 pub fn wake(world: &mut World, body: usize) {
-    let _ = (world, body);
+    world.wake_island(body);
 }
 
 /// Moves the grab's target (and its stiffness).
@@ -85,7 +86,10 @@ pub fn place(world: &mut World) {
         && body.is_dynamic()
     {
         body.position = grab.target - body.orientation * grab.local_point;
+        // Moved: the sleepers it is put among wake in the next step.
+        body.moving = true;
     }
+    wake(world, grab.body);
 }
 
 /// The grabbed point in world space and the spring's force on it over the next (sub)step, for

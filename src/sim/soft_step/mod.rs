@@ -463,6 +463,18 @@ impl SoftStep {
         }
     }
 
+    /// Wakes sleeping body `index` and the island it fell asleep in (the bodies it touched or
+    /// was joined to then): a body the user moves or grabs takes the bodies it held with it.
+    pub fn wake_island(
+        &self,
+        bodies: &mut [RigidBody],
+        constraints: &[DistanceConstraint],
+        index: usize,
+    ) {
+        let touching = self.contacts.pairs();
+        sleep::wake(bodies, constraints, touching, std::iter::once(index));
+    }
+
     pub fn restore(&mut self, carried: &Carried) {
         self.contacts.clone_from(&carried.contacts);
         self.joint_impulses.clone_from(&carried.joint_impulses);
@@ -535,7 +547,13 @@ impl SoftStep {
         if stats.joint_projections_cut_short > 0 {
             self.joint_boost = (self.joint_boost + 1).min(MAX_JOINT_BOOST);
         }
-        let parts = (&mut *scene.bodies, scene.constraints, &*scene.start);
+        let grabbed = scene.grab.map(|g| g.body);
+        let parts = (
+            &mut *scene.bodies,
+            scene.constraints,
+            &*scene.start,
+            grabbed,
+        );
         self.finish(ctx, parts, substeps.h, stats);
         self.blocks.take_cycled(&mut self.relaxed_joints);
     }
@@ -776,11 +794,16 @@ impl SoftStep {
     }
 
     /// Restitution with its energy rule (the small islands' ran in their batches), velocities
-    /// back into the bodies, impulses kept.
+    /// back into the bodies, sleep (the `grabbed` body's island kept awake), impulses kept.
     fn finish(
         &mut self,
         ctx: &StepContext,
-        (bodies, constraints, start): (&mut [RigidBody], &[DistanceConstraint], &[(DVec3, DQuat)]),
+        (bodies, constraints, start, grabbed): (
+            &mut [RigidBody],
+            &[DistanceConstraint],
+            &[(DVec3, DQuat)],
+            Option<usize>,
+        ),
         h: f64,
         stats: &mut StepStats,
     ) {
@@ -826,7 +849,7 @@ impl SoftStep {
                 start,
                 constraints,
                 touching,
-                (ctx.settings.time_step, ctx.settings.gravity),
+                (ctx.settings.time_step, ctx.settings.gravity, grabbed),
             );
         }
         self.touched_sleepers.clear();

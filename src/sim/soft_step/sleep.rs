@@ -120,7 +120,9 @@ fn links<'a>(
 
 /// Updates sleep timers after a step of `dt` under `gravity` from the poses it began at
 /// (`start`), then puts to sleep every island of awake bodies (joined by `touching` pairs and
-/// constraints) whose bodies all rested long enough.
+/// constraints) whose bodies all rested long enough; never the island of the body a grab holds
+/// (`grabbed`), which moves as the cursor does (held still on the ground, it slept at 0.5 s and
+/// was woken by the next step, its velocity zeroed every half second).
 pub fn settle(
     islands: &mut Islands,
     bodies: &mut [RigidBody],
@@ -128,7 +130,7 @@ pub fn settle(
     start: &[(glam::DVec3, glam::DQuat)],
     constraints: &[DistanceConstraint],
     touching: impl Iterator<Item = (usize, usize)>,
-    (dt, gravity): (f64, glam::DVec3),
+    (dt, gravity, grabbed): (f64, glam::DVec3, Option<usize>),
 ) {
     let mut awake = std::mem::take(&mut islands.awake);
     awake_bodies(bodies, radii, start, dt, &mut awake);
@@ -183,6 +185,10 @@ pub fn settle(
             (false, true) => f64::INFINITY,
         };
         rest_for(&mut bodies[i], a, (calm, limit), dt);
+        if grabbed == Some(i) {
+            // Rests afresh once let go.
+            bodies[i].sleep_time = 0.0;
+        }
         // In free flight under a gravity too weak for the velocity test (a box falling at
         // 0.03 units/s^2 slept in mid-air at 0.5 s), the island rests no time at all; without
         // gravity, only while it is still.
