@@ -381,14 +381,20 @@ fn a_moved_or_held_body_keeps_its_island_awake() {
     for _ in 0..200 {
         s.step_once();
     }
-    assert!(s.world().bodies.iter().all(|b| b.asleep), "the stack sleeps by 4 s");
+    assert!(
+        s.world().bodies.iter().all(|b| b.asleep),
+        "the stack sleeps by 4 s"
+    );
     s.pause();
     let local = DVec3::ZERO;
     let picked = s.world().bodies[0].position;
     assert!(s.grab(0, local, picked));
     s.drag_grab(picked + DVec3::new(5.0, 0.0, 0.0));
     s.release_grab();
-    assert!(s.world().bodies.iter().all(|b| !b.asleep), "the island woke");
+    assert!(
+        s.world().bodies.iter().all(|b| !b.asleep),
+        "the island woke"
+    );
     let top = s.world().bodies[2].position.y;
     for _ in 0..25 {
         s.step_once();
@@ -404,7 +410,11 @@ fn a_moved_or_held_body_keeps_its_island_awake() {
     assert!(s.grab(0, local, picked));
     for _ in 0..150 {
         s.step_once();
-        assert!(!s.world().bodies[0].asleep, "asleep at {} s", s.world().time);
+        assert!(
+            !s.world().bodies[0].asleep,
+            "asleep at {} s",
+            s.world().time
+        );
     }
     s.release_grab();
     for _ in 0..100 {

@@ -263,6 +263,15 @@ pub struct Scene<'a> {
     pub start: &'a mut [(DVec3, DQuat)],
 }
 
+/// What [`SoftStep::finish`] works on: the bodies, the constraints, each body's pose when the
+/// step began, and the body a grab holds.
+type FinishedParts<'a> = (
+    &'a mut [RigidBody],
+    &'a [DistanceConstraint],
+    &'a [(DVec3, DQuat)],
+    Option<usize>,
+);
+
 /// What a step leaves for the next one (warm-start impulses): a snapshot's share.
 #[derive(Debug, Clone, Default)]
 pub struct Carried {
@@ -798,12 +807,7 @@ impl SoftStep {
     fn finish(
         &mut self,
         ctx: &StepContext,
-        (bodies, constraints, start, grabbed): (
-            &mut [RigidBody],
-            &[DistanceConstraint],
-            &[(DVec3, DQuat)],
-            Option<usize>,
-        ),
+        (bodies, constraints, start, grabbed): FinishedParts,
         h: f64,
         stats: &mut StepStats,
     ) {

@@ -433,7 +433,7 @@ mod tests {
                 &start,
                 &[],
                 links,
-                (dt, gravity),
+                (dt, gravity, None),
             );
         }
     }
