@@ -504,6 +504,31 @@ fn record_errors_are_clear() {
     fails_saying(tumble().args(long).arg(dir.join("long.gif")), words);
 }
 
+/// The compared world's constraint budget is warned of as the first world's is.
+#[test]
+fn record_warns_of_the_compared_worlds_budget() {
+    let dir = scratch("compare-budget");
+    let Some(output) = run_rendering(
+        tumble()
+            .args([
+                "record",
+                "chain-1000",
+                "--accurate",
+                "--compare",
+                "coursework",
+            ])
+            .args(["--seconds", "0.02", "--size", "64x64", "-o"])
+            .arg(dir.join("c.gif")),
+    ) else {
+        return;
+    };
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("warning: --compare: --max-iterations 10000 allows 6 constraint visits"),
+        "{stderr}"
+    );
+}
+
 /// `view --screenshot` is checked as the other outputs are, before any window opens: not over
 /// the scene it shows (it replaced it with a PNG), and a PNG by name.
 #[test]

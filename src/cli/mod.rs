@@ -322,7 +322,7 @@ impl SceneArgs {
         for w in &world.warnings {
             eprintln!("warning: {w}");
         }
-        if let Some(note) = short_budget(&world) {
+        if let Some(note) = short_budget(&world.settings, world.constraints.len()) {
             eprintln!("warning: {note}");
         }
         Ok(world)
@@ -331,10 +331,9 @@ impl SceneArgs {
 
 /// Said where the coursework's constraint budget cannot visit each inequality once a step: the
 /// skeleton's rule (at most ceil(K / M) visits for M inequalities) is kept, but chain-10000 at
-/// the default budget projects one constraint a step, in silence but for "budget hit".
-fn short_budget(world: &tumble::World) -> Option<String> {
-    let s = &world.settings;
-    let m = world.constraints.len();
+/// the default budget projects one constraint a step, in silence but for "budget hit". `s`:
+/// the settings of a world of the scene's `m` inequalities (the first, or a compared one).
+pub fn short_budget(s: &Settings, m: usize) -> Option<String> {
     let visits = s.max_iterations.div_ceil(m.max(1));
     (s.solver == Solver::Coursework && m > 0 && visits < m).then(|| {
         format!(

@@ -4,8 +4,8 @@
 use super::{SceneArgs, SettingsArgs};
 use clap::{Args, Parser};
 use std::path::PathBuf;
-use tumble::Settings;
-use tumble::io::counted;
+#[cfg(feature = "viewer")]
+use tumble::{Settings, io::counted};
 
 /// The settings of a compared world: `--compare` takes a preset (`accurate`, `coursework`), the
 /// settings flags of `tumble run`, or a preset followed by flags.
@@ -18,6 +18,7 @@ struct CompareFlags {
 
 /// Parses a `--compare` spec (also typed into the viewer's panel) into settings, printing the
 /// warnings they earn.
+#[cfg(feature = "viewer")]
 pub fn parse_compare(spec: &str) -> Result<Settings, String> {
     let (settings, notes) = compare_checked(spec)?;
     for note in notes {
@@ -27,6 +28,7 @@ pub fn parse_compare(spec: &str) -> Result<Settings, String> {
 }
 
 /// [`parse_compare`] without printing: the settings and their warnings.
+#[cfg(feature = "viewer")]
 fn compare_checked(spec: &str) -> Result<(Settings, Vec<String>), String> {
     let mut words: Vec<&str> = spec.split_whitespace().collect();
     let preset = match words.first() {
@@ -198,11 +200,21 @@ fn layout(ghost: bool) -> tumble::viewer::Layout {
     }
 }
 
-/// The settings of `--compare`, checked before anything opens.
+/// The compared world's constraint budget, as the first world's is warned of when the scene
+/// loads ([`super::short_budget`]): `--compare coursework` on chain-10000 visited one
+/// constraint a step in silence.
 #[cfg(feature = "viewer")]
+fn warn_of_compared_budget(compare: Option<&Settings>, world: &tumble::World) {
+    let note = compare.and_then(|s| super::short_budget(s, world.constraints.len()));
+    if let Some(note) = note {
+        eprintln!("warning: --compare: {note}");
+    }
+}
+
 /// The settings of `--compare` and their warnings, not printed: `view` leaves them to the app
 /// (which parses the spec again: printed here too, each came twice), `record` to after its own
 /// checks (printed first, `--dt 0`'s warning came before the refusal of it).
+#[cfg(feature = "viewer")]
 fn compare_settings(spec: Option<&str>) -> anyhow::Result<Option<(Settings, Vec<String>)>> {
     spec.map(|spec| compare_checked(spec).map_err(|e| anyhow::anyhow!("--compare '{spec}': {e}")))
         .transpose()
@@ -210,7 +222,7 @@ fn compare_settings(spec: Option<&str>) -> anyhow::Result<Option<(Settings, Vec<
 
 #[cfg(feature = "viewer")]
 pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
-    compare_settings(args.comparison.compare.as_deref())?;
+    let compare = compare_settings(args.comparison.compare.as_deref())?.map(|(s, _)| s);
     // Checked before the window opens (the view applies it once the scene is framed).
     if let Some(spec) = &args.camera {
         anyhow::ensure!(
@@ -231,6 +243,7 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
         );
     }
     let world = args.scene.load(args.settings.settings()?)?;
+    warn_of_compared_budget(compare.as_ref(), &world);
     // Checked as the other outputs are: `--screenshot scene.txt` replaced the scene with a PNG.
     if let Some(shot) = &args.screenshot {
         let png = shot
@@ -323,6 +336,7 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
         (1280, 720)
     });
     let world = args.scene.load(settings)?;
+    warn_of_compared_budget(compare.as_ref(), &world);
     let output = tumble::viewer::record::check_recording_output(&args.output, &world.inputs)?;
     let options = RecordOptions {
         output,
