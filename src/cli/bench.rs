@@ -486,11 +486,12 @@ fn print_soak(results: &[SoakResult]) {
     );
     for r in results {
         println!(
-            "{:<10} {:>8} {:>8.2} {:>10.3} {:>12.4} {:>12.3e} {:>8} {:>13.6e} {:>13.6e} {:>6}",
+            "{:<10} {:>8} {:>8.2} {:>10} {:>12.4} {:>12.3e} {:>8} {:>13.6e} {:>13.6e} {:>6}",
             r.scene,
             r.steps,
             r.wall_s,
-            r.max_drift,
+            // None for a run shorter than the second it settles in.
+            r.max_drift.map_or("-".to_string(), |d| format!("{d:.3}")),
             r.late_max_speed,
             r.worst_relative_violation,
             r.budget_hits,
