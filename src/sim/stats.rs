@@ -7,8 +7,9 @@ use serde::ser::SerializeMap;
 use std::time::Instant;
 
 /// The stages of a step, in the order the coursework solver runs them (the soft step
-/// integrates the bodies nothing touches after [`Stage::SolvePrepare`]). The one list of stage names: statistics, `tumble
-/// run`, the benchmarks and the viewer panel all iterate over [`Stage::ALL`].
+/// integrates the bodies nothing touches after [`Stage::SolvePrepare`]). The one list of stage
+/// names: statistics, `tumble run`, the benchmarks and the viewer panel all iterate over
+/// [`Stage::ALL`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Stage {
     /// Gravity into velocities, velocities into poses.

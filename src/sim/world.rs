@@ -117,10 +117,11 @@ impl World {
             // From outside the thread pool every parallel loop that splits would hand its work
             // over cold (wake a worker, wait on it); inside it they split hot. One hand-over per
             // step instead of one per loop (pile-200 under the soft step: three passes of every
-            // colour per substep, four where the substep clamps the contacts; sparse-1000 under the coursework solver: 40 % of a one-thread
-            // step was spent switching threads). A scene with nothing awake stays here: its step
-            // has no loop to split. A loop of many steps is better run in the pool as a whole
-            // ([`World::stepping`]): each hand-over here wakes an idle core.
+            // colour per substep, four where the substep clamps the contacts; sparse-1000 under
+            // the coursework solver: 40 % of a one-thread step was spent switching threads). A
+            // scene with nothing awake stays here: its step has no loop to split. A loop of many
+            // steps is better run in the pool as a whole ([`World::stepping`]): each hand-over
+            // here wakes an idle core.
             return rayon::scope(|_| self.step());
         }
         let ctx = StepContext::new(&self.settings, self.constraints.len());
@@ -250,7 +251,8 @@ impl World {
     /// step would not see moved.
     pub fn wake_island(&mut self, index: usize) {
         if index < self.bodies.len() {
-            (self.soft_step).wake_island(&mut self.bodies, &self.constraints, index);
+            self.soft_step
+                .wake_island(&mut self.bodies, &self.constraints, index);
         }
     }
 

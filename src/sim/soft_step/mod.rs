@@ -11,8 +11,8 @@
 //!   with, measured in the invariant of the integrator (exact apex ratios at any step).
 //!
 //! Large islands are solved colour by colour on all threads ([`constraint_graph`]); small ones
-//! (up to 64 manifolds), in a scene without distance constraints or a grab, in batches, each through all its substeps while its rows are in cache
-//! ([`island_batch`]), with the same bits.
+//! (up to 64 manifolds), in a scene without distance constraints or a grab, in batches, each
+//! through all its substeps while its rows are in cache ([`island_batch`]), with the same bits.
 
 pub mod constraint_graph;
 pub mod contact_solver;
