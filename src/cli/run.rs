@@ -158,14 +158,20 @@ impl TrajectoryOut {
         &mut self,
         write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
     ) -> anyhow::Result<()> {
-        let (out, to): (&mut dyn Write, String) = match self {
-            Self::File(file) => {
-                let to = file.path().display().to_string();
-                (file.writer(), to)
-            }
-            Self::Stdout(out) => (out, "standard output".into()),
+        let written = match self {
+            Self::File(file) => write(file.writer()),
+            Self::Stdout(out) => write(out),
         };
-        write(out).map_err(|e| anyhow::anyhow!("writing the trajectory to {to}: {e}"))
+        // The name made only on an error: this runs every step.
+        written.map_err(|e| anyhow::anyhow!("writing the trajectory to {}: {e}", self.name()))
+    }
+
+    /// Where the trajectory goes, for errors.
+    fn name(&self) -> String {
+        match self {
+            Self::File(file) => file.path().display().to_string(),
+            Self::Stdout(_) => "standard output".into(),
+        }
     }
 
     /// The file renamed into place, or standard output flushed.

@@ -191,16 +191,16 @@ fn faces_on_edge(
     weld: &[u32],
     (triangles, lines): (&[[u32; 3]], &[usize]),
 ) -> (usize, (u32, u32), String) {
-    let mut on_edge = triangles.iter().zip(lines).filter_map(|(t, &line)| {
-        (0..3).find_map(|k| {
-            let (p, q) = (t[k], t[(k + 1) % 3]);
-            let (a, b) = (weld[p as usize], weld[q as usize]);
-            ((a, b) == edge || (b, a) == edge).then_some((line, (p.min(q), p.max(q))))
+    let mut found: Vec<(usize, (u32, u32))> = (triangles.iter().zip(lines))
+        .filter_map(|(t, &line)| {
+            (0..3).find_map(|k| {
+                let (p, q) = (t[k], t[(k + 1) % 3]);
+                let (a, b) = (weld[p as usize], weld[q as usize]);
+                ((a, b) == edge || (b, a) == edge).then_some((line, (p.min(q), p.max(q))))
+            })
         })
-    });
-    let first = on_edge.next().expect("an unbalanced edge has a face");
-    let mut found: Vec<(usize, (u32, u32))> = std::iter::once(first).chain(on_edge).collect();
-    let (line, written) = found.pop().expect("one at least");
+        .collect();
+    let (line, written) = found.pop().expect("an unbalanced edge has a face");
     let mut others: Vec<usize> = found
         .iter()
         .map(|&(l, _)| l)
