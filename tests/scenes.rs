@@ -150,6 +150,48 @@ fn every_builtin_scene_loads_and_runs() {
     assert!(none.constraints.is_empty());
 }
 
+/// The generated scenes the benches time start with no body inside another or below the ground
+/// deeper than the loader's warning allows (1 % of the smaller body's least extent, where resting
+/// contacts sag), found by the coursework's detection, an independent reading of the poses:
+/// bodies that start inside each other are pushed apart in the first steps, and the bench would
+/// time that instead of the scene it names. `sparse-N` from about 4,000 bodies is left out: it is
+/// the coursework's own comparison, the same square however many bodies, so it fills up.
+#[test]
+fn generated_scenes_start_with_every_body_apart() {
+    let names = [
+        "pile-100",
+        "pile-200",
+        "pile-1000",
+        "pile-10000",
+        "chain-100",
+        "chain-1000",
+        "chain-10000",
+        "scatter-1000",
+        "scatter-10000",
+        "rope-50",
+        "stack-8",
+        "sparse-1000",
+    ];
+    for name in names {
+        let world = tumble::scene::load(name, &ConstraintsChoice::Auto, Settings::default())
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let fixed = |j: Option<usize>| j.is_none_or(|j| world.bodies[j].fixed);
+        let size = |i: usize| world.shapes[world.bodies[i].shape].least_extent();
+        let smaller = |i, j: Option<usize>| j.map_or(size(i), |j| size(i).min(size(j)));
+        let inside: Vec<String> = (world.current_contacts().into_iter())
+            .filter(|&(i, j, _)| !(world.bodies[i].fixed && fixed(j)))
+            .filter(|&(i, j, c)| c.depth > tumble::scene::STARTING_OVERLAP * smaller(i, j))
+            .map(|(i, j, c)| format!("{i} in {j:?} by {:.3}", c.depth))
+            .collect();
+        assert!(
+            inside.is_empty(),
+            "{name}: {} bodies start inside another or the ground: {:?}",
+            inside.len(),
+            &inside[..inside.len().min(5)]
+        );
+    }
+}
+
 /// For a convex (or star-shaped) mesh, every outward face normal points away from the centre of
 /// mass.
 fn assert_outward(shape: &tumble::Shape, what: &str) {

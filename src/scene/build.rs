@@ -141,7 +141,7 @@ fn load_constraints(
 /// which resting contacts' own sag lies. Deeper, the solvers push the bodies apart in the first
 /// steps, with speeds the scene did not ask for (200 copies of one tetrahedron at one spot
 /// gained 8 times their energy under the preset).
-const STARTING_OVERLAP: f64 = 0.01;
+pub const STARTING_OVERLAP: f64 = 0.01;
 
 /// Overlaps reported one by one at most; the rest are counted.
 const OVERLAPS_LISTED: usize = 5;

@@ -104,6 +104,10 @@ pub fn pile(n: usize, settings: Settings) -> World {
     ];
     let mut shapes: Vec<Shape> = meshes.iter().map(shape_of).collect();
     let per_side = ((n as f64 / 8.0).sqrt().ceil() as usize).max(2);
+    // The shapes go in turn along a row (k % 3), so a side that is a multiple of three would put
+    // each shape beside itself across rows, and two boxes tilted towards each other start inside
+    // each other (pile-1000 had 152 such pairs): one more column keeps neighbours different.
+    let per_side = per_side + usize::from(per_side.is_multiple_of(3));
     let pitch = 6.5;
     let half = pitch * per_side as f64 / 2.0 + 2.0;
     let wall_height = 40.0;
@@ -182,8 +186,10 @@ pub fn chain(n: usize, settings: Settings) -> World {
     let mut rng = Rng::new(0x5EED_0003);
     for c in 0..chains {
         let (x, z) = (12.0 * (c % side) as f64, 12.0 * (c / side) as f64);
-        // The chain starts tilted so that it swings.
-        let lean = rng.range(-1.0, 1.0);
+        // The chain starts tilted so that it swings; at most 0.4 per link, so that the lowest
+        // link (9 links down, 4 wide) stays clear of its neighbour's 12 away whichever way both
+        // lean (at most 1 per link, chain-1000 started with 27 links inside their neighbours).
+        let lean = rng.range(-0.4, 0.4);
         for k in 0..CHAIN_LINKS {
             let position = DVec3::new(x + lean * k as f64, 80.0 - 4.0 * k as f64, z);
             bodies.push(RigidBody::on_shape(

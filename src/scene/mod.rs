@@ -9,7 +9,7 @@ mod files;
 pub mod fuzzing;
 pub mod generate;
 
-pub use build::{load_mesh_file, mesh_paths, mesh_reader};
+pub use build::{STARTING_OVERLAP, load_mesh_file, mesh_paths, mesh_reader};
 pub use files::embedded_file;
 
 use crate::io::LoadError;
