@@ -183,7 +183,9 @@ pub fn stress_scene() -> String {
         (60.0, 60.0),
     ] {
         // Upright (the cylinder's axis is y), standing on the ground: 10 high.
-        records.push(format!("../assets/cylinder.mesh\t5000\t1\t{x} 5 {z}\t1 0 0 0"));
+        records.push(format!(
+            "../assets/cylinder.mesh\t5000\t1\t{x} 5 {z}\t1 0 0 0"
+        ));
     }
     let mut k = 0;
     for layer in 0..3 {

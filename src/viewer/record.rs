@@ -136,14 +136,12 @@ struct PngDirEncoder {
 }
 
 impl PngDirEncoder {
-    /// Creates the directory and removes the frames of an earlier recording, which would mix
-    /// with this one's.
+    /// Creates the directory. The frames of an earlier recording, which would mix with this
+    /// one's, go when the first frame comes: a recording that ends before it (an error, an
+    /// interrupt, a window recording stopped at once) leaves the earlier one whole.
     fn create(path: &Path) -> anyhow::Result<PngDirEncoder> {
         std::fs::create_dir_all(path)
             .with_context(|| format!("cannot create directory {}", path.display()))?;
-        for frame in earlier_frames(path) {
-            let _ = std::fs::remove_file(frame);
-        }
         Ok(PngDirEncoder {
             dir: path.to_path_buf(),
             frames: 0,
@@ -218,6 +216,11 @@ fn check_frames_folder(folder: &Path, inputs: &[PathBuf]) -> anyhow::Result<()> 
 
 impl Encoder for PngDirEncoder {
     fn frame(&mut self, image: &mut Image) -> anyhow::Result<()> {
+        if self.frames == 0 {
+            for frame in earlier_frames(&self.dir) {
+                let _ = std::fs::remove_file(frame);
+            }
+        }
         let path = self.dir.join(frame_name(self.frames));
         self.frames += 1;
         image.save_png(&path)
@@ -776,6 +779,52 @@ mod tests {
             OutputKind::PngDir
         );
         assert!(OutputKind::of(Path::new("a.avi")).is_err());
+    }
+
+    /// A folder recording replaces an earlier one's frames when its first frame comes, not
+    /// before: one that ends without a frame leaves them (it removed them as it began).
+    #[test]
+    fn a_folder_recording_without_a_frame_keeps_the_earlier_frames() {
+        let dir = std::env::temp_dir().join(format!("tumble-folder-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let earlier: Vec<String> = (0..3).map(frame_name).collect();
+        for name in earlier.iter().chain(["notes.txt".to_string()].iter()) {
+            std::fs::write(dir.join(name), b"earlier").unwrap();
+        }
+        let listed = || {
+            let mut names: Vec<(String, u64)> = (std::fs::read_dir(&dir).unwrap().flatten())
+                .map(|e| {
+                    (
+                        e.file_name().to_string_lossy().into_owned(),
+                        e.metadata().unwrap().len(),
+                    )
+                })
+                .collect();
+            names.sort();
+            names
+        };
+        drop(FrameWriter::create(&dir, 4, 2, 10.0).unwrap());
+        let kept = listed();
+        let mut writer = FrameWriter::create(&dir, 4, 2, 10.0).unwrap();
+        let image = Image {
+            width: 4,
+            height: 2,
+            rgba: vec![200; 32],
+        };
+        writer.push(image).unwrap();
+        writer.finish().unwrap();
+        let replaced = listed();
+        let _ = std::fs::remove_dir_all(&dir);
+        let names =
+            |list: &[(String, u64)]| list.iter().map(|(n, _)| n.clone()).collect::<Vec<_>>();
+        assert_eq!(
+            names(&kept),
+            [&earlier[..], &["notes.txt".to_string()]].concat()
+        );
+        assert!(kept.iter().all(|(_, len)| *len == 7), "{kept:?}");
+        assert_eq!(names(&replaced), [frame_name(0), "notes.txt".to_string()]);
+        assert_ne!(replaced[0].1, 7, "frame 0 is the new recording's");
     }
 
     /// A recording finished is in place and nothing else; one dropped unfinished (an error on
