@@ -60,7 +60,20 @@ fn draw_legend<DB: DrawingBackend>(
     Ok(())
 }
 
-/// Writes an SVG plot with logarithmic axes; non-positive values are dropped. Drawn in memory
+/// Least and greatest value a logarithmic axis shows: plotters walks an axis's powers of ten
+/// from its lower end by multiplication, which never ends from a subnormal lower end (it stays
+/// 0) or towards an upper end past `f64::MAX` (a run's metric of 1e308, a range widened by half,
+/// is infinite). 600 decades: any figure a run means.
+const AXIS_RANGE: (f64, f64) = (1e-300, 1e300);
+
+/// Whether a point can stand on logarithmic axes ([`AXIS_RANGE`]).
+fn plottable((x, y): &(f64, f64)) -> bool {
+    let within = |v: f64| (AXIS_RANGE.0..=AXIS_RANGE.1).contains(&v);
+    within(*x) && within(*y)
+}
+
+/// Writes an SVG plot with logarithmic axes; values that are not positive, or lie beyond
+/// [`AXIS_RANGE`], are dropped. Drawn in memory
 /// and written whole ([`super::write_named`]); an error names the file.
 pub fn log_log_plot(
     path: &Path,
@@ -85,7 +98,7 @@ fn draw_log_log(
     let all: Vec<(f64, f64)> = series
         .iter()
         .flat_map(|s| s.points.iter().copied())
-        .filter(|(x, y)| *x > 0.0 && *y > 0.0 && x.is_finite() && y.is_finite())
+        .filter(plottable)
         .collect();
     let (mut x0, mut x1, mut y0, mut y1) = all.iter().fold(
         (f64::MAX, f64::MIN, f64::MAX, f64::MIN),
@@ -118,12 +131,7 @@ fn draw_log_log(
     order.sort_by_key(|(_, s)| !s.pareto);
     for (k, s) in order {
         let color = COLORS[k % COLORS.len()];
-        let pts: Vec<(f64, f64)> = s
-            .points
-            .iter()
-            .copied()
-            .filter(|(x, y)| *x > 0.0 && *y > 0.0 && x.is_finite() && y.is_finite())
-            .collect();
+        let pts: Vec<(f64, f64)> = s.points.iter().copied().filter(plottable).collect();
         chart
             .draw_series(LineSeries::new(pts.clone(), line_style(k, s)))
             .map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -137,4 +145,27 @@ fn draw_log_log(
     draw_legend(&legend, series)?;
     root.present().map_err(|e| anyhow::anyhow!("{e}"))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Figures at the ends of `f64` (a metric of 1e308, a subnormal wall time) are left out and
+    /// the plot drawn: with them in, plotters' walk over the axis's powers of ten never ended.
+    #[test]
+    fn extreme_values_are_left_out_of_the_axes() {
+        for extreme in [1e308, 8e307, 1e-308, 5e-324, f64::MAX] {
+            let series = [Series {
+                name: "run".into(),
+                points: vec![(1.0, extreme), (2.0, 1.0), (extreme, 3.0)],
+                pareto: false,
+            }];
+            let mut svg = String::new();
+            draw_log_log(&mut svg, ("t", "x", "y"), &series).unwrap();
+            assert!(svg.contains("<svg"), "{extreme}");
+        }
+        assert!(plottable(&(1e-300, 1e300)) && !plottable(&(1e-301, 1.0)));
+        assert!(!plottable(&(1.0, f64::NAN)) && !plottable(&(0.0, 1.0)));
+    }
 }
