@@ -148,6 +148,14 @@ fn missing_files() {
         ("rope-", count),
         ("chain-1", links),
         ("chain-15", links),
+        (
+            "sparse-100001",
+            "N must be a whole number from 1 to 100000 (it packs them",
+        ),
+        (
+            "sparse-x",
+            "N must be a whole number from 1 to 100000, not 'x'",
+        ),
     ] {
         expect(
             tumble::scene::load(name, &ConstraintsChoice::Auto, Settings::default())
@@ -465,6 +473,19 @@ fn off_file_errors() {
         "m.off",
         None,
         "too large",
+    );
+    // Faces of 1024 corners, each a fan of 1022 triangles: refused at the face that passes the
+    // mesh limit of 5,000,000 triangles (the 4,893rd, on line 7 + 4,892), not after them all.
+    let face = format!("1024{}\n", " 0 1 2 3".repeat(256));
+    let many = format!(
+        "OFF\n4 5000 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n{}",
+        face.repeat(5000)
+    );
+    expect(
+        off(&many),
+        "m.off",
+        Some(4899),
+        "more than 5000000 triangles",
     );
     // Closed but flat: two faces back to back.
     expect(
@@ -1274,6 +1295,16 @@ fn cli_names_the_setting_a_negative_value_breaks() {
     let huge = ["run", "pile-20", "--steps", "99999999999999999999999"].map(os);
     let words = "99999999999999999999999 is more than the most allowed here, 18446744073709551615";
     cli_fails_saying(&huge, words);
+    // A budget that a step of rods that cannot all hold would never use up.
+    let endless = [
+        "run",
+        "two-chain",
+        "--max-iterations",
+        "18446744073709551615",
+    ]
+    .map(os);
+    let words = "--max-iterations must be at most 1000000000, got 18446744073709551615";
+    cli_fails_saying(&endless, words);
     // A mesh where a scene is expected is called a mesh (it read as a scene counting "OFF").
     let mesh = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/box.mesh");
     cli_fails_saying(&["run", mesh].map(os), "a mesh, not a scene");
@@ -1334,7 +1365,11 @@ fn bench_options_out_of_range_are_named() {
         (["scale", "--steps", "0"], "--steps must be at least 1"),
         (
             ["scale", "--sizes", "15"],
-            "--sizes: chain-N needs N a multiple of 10 (chains of 10 links), got 15",
+            "--sizes: chain-N: N must be a multiple of 10 (chains of 10 links), not 15",
+        ),
+        (
+            ["scale", "--sizes", "200000"],
+            "--sizes: sparse-N: N must be a whole number from 1 to 100000 (it packs them",
         ),
         (
             ["scale", "--steps", "18446744073709551615"],

@@ -186,6 +186,15 @@ fn the_summary_writes_huge_figures_shortly() {
     let out = succeeded(tumble().args(["run", "cube", "--steps", "1"]));
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("\n1 step (0.02 s simulated)"), "{stdout}");
+    // An energy past f64's range has no share of change (it printed "NaN%").
+    let args = ["run", "mixed", "--steps", "2", "--gravity", "0,-1e308,0"];
+    let out = succeeded(tumble().args(args));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let energy = stdout.lines().find(|l| l.starts_with("energy ")).unwrap();
+    assert!(
+        energy.contains("no change to give") && !energy.contains("NaN"),
+        "{energy}"
+    );
 }
 
 #[cfg(unix)]

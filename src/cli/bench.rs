@@ -31,7 +31,8 @@ pub struct ScaleArgs {
     /// square), pile, chain, scatter (constant density: the area grows with N) [default: all].
     #[arg(long, num_args = 1.., value_delimiter = ',')]
     pub scenes: Vec<String>,
-    /// Body counts of sparse, pile and chain [default: 100 1000 10000; 100 1000 with --quick].
+    /// Body counts of sparse (at most 100000), pile and chain [default: 100 1000 10000; 100
+    /// 1000 with --quick].
     #[arg(long, num_args = 1.., value_delimiter = ',')]
     pub sizes: Vec<usize>,
     /// Body counts of scatter [default: 1000 10000 100000; 1000 with --quick].
@@ -131,13 +132,17 @@ fn check_scale_config(config: &ScaleConfig) -> anyhow::Result<()> {
             );
         }
     }
-    let links = tumble::scene::generate::CHAIN_LINKS;
-    if config.scenes.iter().any(|s| s == "chain")
-        && let Some(n) = config.sizes.iter().find(|n| !n.is_multiple_of(links))
-    {
-        anyhow::bail!(
-            "--sizes: chain-N needs N a multiple of {links} (chains of {links} links), got {n}"
-        );
+    // Each family's own limits (sparse's smaller most, chain-N's multiples of ten).
+    for family in &config.scenes {
+        let (flag, sizes) = match family.as_str() {
+            "scatter" => ("--scatter-sizes", &config.scatter_sizes),
+            _ => ("--sizes", &config.sizes),
+        };
+        for &n in sizes {
+            if let Some(problem) = tumble::scene::generated_size_problem(family, n) {
+                anyhow::bail!("{flag}: {problem}");
+            }
+        }
     }
     if config.steps == 0 {
         anyhow::bail!("--steps must be at least 1");

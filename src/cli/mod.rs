@@ -13,6 +13,10 @@ use tumble::{ConstraintsChoice, Settings};
 
 /// Simulation settings common to `run`, `view`, `record` and the benchmarks. Defaults reproduce
 /// the coursework exactly; every improvement is opt-in.
+/// Largest `--max-iterations`: a billion, where one step of a few constraints that cannot all
+/// hold takes some seconds.
+const MAX_ITERATIONS: usize = 1_000_000_000;
+
 #[derive(Debug, Clone, Args)]
 pub struct SettingsArgs {
     /// Solver: the coursework's method or tumble's soft step [default: coursework; soft-step
@@ -29,9 +33,9 @@ pub struct SettingsArgs {
     /// [default: 0.5].
     #[arg(long, value_name = "MU", allow_negative_numbers = true)]
     pub friction: Option<f64>,
-    /// The coursework's maxIterations: the constraint loop stops once visits x M reach K, M being
-    /// the number of inequality constraints (two per constraint record), so a step makes at most
-    /// ceil(K / M) constraint visits (coursework solver) [default: 10000].
+    /// The coursework's maxIterations: the constraint loop stops once visits x M reach K (at most
+    /// 1000000000), M being the number of inequality constraints (two per constraint record), so
+    /// a step makes at most ceil(K / M) constraint visits (coursework solver) [default: 10000].
     #[arg(long, value_name = "K", allow_negative_numbers = true, value_parser = whole_number::<usize>)]
     pub max_iterations: Option<usize>,
     /// Gravity, X,Y,Z in units/s^2 (the ground is y = 0) [default: 0,-9.8,0].
@@ -122,7 +126,8 @@ impl SettingsArgs {
         if let Some(v) = self.dt {
             anyhow::ensure!(
                 v.is_finite() && v >= 0.0,
-                "--dt must be a non-negative number of seconds, got {v}"
+                "--dt must be a non-negative number of seconds, got {}",
+                tumble::io::echoed(v)
             );
             s.time_step = v;
         }
@@ -132,18 +137,26 @@ impl SettingsArgs {
         if let Some(v) = self.friction {
             anyhow::ensure!(
                 v.is_finite() && v >= 0.0,
-                "--friction must be a non-negative number, got {v}"
+                "--friction must be a non-negative number, got {}",
+                tumble::io::echoed(v)
             );
             s.friction = v;
         }
         if let Some(v) = self.restitution {
             anyhow::ensure!(
                 (0.0..=1.0).contains(&v),
-                "--restitution must lie in [0, 1], got {v}"
+                "--restitution must lie in [0, 1], got {}",
+                tumble::io::echoed(v)
             );
             s.restitution = v;
         }
         if let Some(v) = self.max_iterations {
+            // 2^64 - 1 ran one step of three rods that cannot all hold for ever; a billion is
+            // the README's "unlimited" budget (some seconds a step).
+            anyhow::ensure!(
+                v <= MAX_ITERATIONS,
+                "--max-iterations must be at most {MAX_ITERATIONS}, got {v}"
+            );
             s.max_iterations = v;
         }
         if let Some(v) = self.gravity {
@@ -152,7 +165,8 @@ impl SettingsArgs {
         if let Some(v) = self.tolerance {
             anyhow::ensure!(
                 v.is_finite() && v >= 0.0,
-                "--tolerance must be non-negative, got {v}"
+                "--tolerance must be non-negative, got {}",
+                tumble::io::echoed(v)
             );
             s.tolerance = v;
         }
@@ -162,7 +176,8 @@ impl SettingsArgs {
         if let Some(v) = self.restitution_threshold {
             anyhow::ensure!(
                 v.is_finite() && v >= 0.0,
-                "--restitution-threshold must be non-negative, got {v}"
+                "--restitution-threshold must be non-negative, got {}",
+                tumble::io::echoed(v)
             );
             s.restitution_threshold = v;
         }
@@ -176,7 +191,8 @@ impl SettingsArgs {
         if let Some(v) = self.full_substeps_from {
             anyhow::ensure!(
                 v.is_finite() && v >= 0.0,
-                "--full-substeps-from must be a non-negative number of seconds, got {v}"
+                "--full-substeps-from must be a non-negative number of seconds, got {}",
+                tumble::io::echoed(v)
             );
             s.full_substeps_from = v;
         }

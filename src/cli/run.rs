@@ -404,8 +404,13 @@ fn worst_violation(s: &RunSummary) -> String {
 fn print_state_at_end(out: &mut impl Write, s: &RunSummary) -> std::io::Result<()> {
     // The share first: 100 times an energy of 3e306 was infinite.
     let change = 100.0 * ((s.energy_end - s.energy_start) / s.energy_start.abs().max(1e-300));
-    // Past a billion percent in scientific notation (`--dt 1e9` printed twenty digits).
+    // Past a billion percent in scientific notation (`--dt 1e9` printed twenty digits). An
+    // energy past f64's range (a body at y = 1e306) has no share: it printed "NaN%".
     let sign = if change >= 0.0 { "+" } else { "" };
+    let share = match change.is_finite() {
+        true => format!("{sign}{}%", super::decimals(change, 3)),
+        false => "no change to give: an energy lies beyond f64's range".to_string(),
+    };
     let frozen = match s.quarantined.len() {
         0 => String::new(),
         n => format!(
@@ -416,10 +421,8 @@ fn print_state_at_end(out: &mut impl Write, s: &RunSummary) -> std::io::Result<(
     };
     writeln!(
         out,
-        "energy {:.6e} -> {:.6e} ({sign}{}%{frozen})",
-        s.energy_start,
-        s.energy_end,
-        super::decimals(change, 3)
+        "energy {:.6e} -> {:.6e} ({share}{frozen})",
+        s.energy_start, s.energy_end,
     )?;
     if s.joint_groups_relaxed > 0 {
         writeln!(

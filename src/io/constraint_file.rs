@@ -45,7 +45,11 @@ pub fn parse_constraints(file: &Path, text: &str) -> Result<Records<ConstraintRe
         if lower < 0.0 || upper < lower {
             return Err(tokens.error(
                 lower_line,
-                format!("bounds must satisfy 0 <= lower <= upper, found {lower} and {upper}"),
+                format!(
+                    "bounds must satisfy 0 <= lower <= upper, found {} and {}",
+                    super::echoed(lower),
+                    super::echoed(upper)
+                ),
             ));
         }
         records.push(ConstraintRecord {

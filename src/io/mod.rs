@@ -31,6 +31,17 @@ pub fn counted(n: impl Into<u64>, one: &str, many: &str) -> String {
     format!("{n} {}", if n == 1 { one } else { many })
 }
 
+/// A number a reader gave, echoed in a message as given (its shortest exact form), in
+/// scientific notation outside 1e-6 to under 1e16: a density of -1e308 was echoed in 309
+/// digits.
+pub fn echoed(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() || (1e-6..1e16).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
 /// `v` to `figures` significant figures as a reader writes it (an axis's tick, a ratio): plainly
 /// from 1e-3 to under 1e6 (`0.003`, `1000`), in scientific notation outside (`1e-4`,
 /// `1.15e10`). Ticks came as computed (`9.999999999999999e-5`) or in full (`11500000000`).
@@ -143,7 +154,25 @@ impl std::error::Error for LoadError {}
 
 #[cfg(test)]
 mod tests {
-    use super::{counted, significant, tick_figures};
+    use super::{counted, echoed, significant, tick_figures};
+
+    /// A number given is echoed exactly, and shortly at the ends of f64's range.
+    #[test]
+    fn numbers_given_are_echoed_shortly_and_exactly() {
+        for (v, shown) in [
+            (0.5, "0.5"),
+            (-3.0, "-3"),
+            (0.0, "0"),
+            (123456.789, "123456.789"),
+            (-1e308, "-1e308"),
+            (1.5e-7, "1.5e-7"),
+            (5e-324, "5e-324"),
+            (1e16, "1e16"),
+        ] {
+            assert_eq!(echoed(v), shown);
+            assert_eq!(shown.parse::<f64>().unwrap(), v);
+        }
+    }
 
     #[test]
     fn ticks_read_as_written() {

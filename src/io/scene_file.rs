@@ -45,7 +45,10 @@ pub fn parse_scene(file: &Path, text: &str) -> Result<Records<SceneRecord>, Load
         if !fixed && density <= 0.0 {
             return Err(tokens.error(
                 density_line,
-                format!("a movable body needs a positive density, found {density}"),
+                format!(
+                    "a movable body needs a positive density, found {}",
+                    super::echoed(density)
+                ),
             ));
         }
         let (x, _) = tokens.real("the x position")?;

@@ -49,7 +49,7 @@ pub(super) fn load_with(
             // should not pass unseen.
             let unused = format!(
                 "the fixed body's density {} is negative; a fixed body's density is not used",
-                record.density
+                crate::io::echoed(record.density)
             );
             warnings.push(LoadError::new(path, Some(record.line), unused).to_string());
         }

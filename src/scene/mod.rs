@@ -87,9 +87,46 @@ pub fn load(
 /// Most bodies a generated scene may have.
 pub const MAX_GENERATED: usize = 1_000_000;
 
+/// Most bodies `sparse-N` may have. It packs them into the same 400 x 400 square at any N, so
+/// its touching pairs grow as N squared: at 100,000 (`bench scale --huge`) they start deep in
+/// each other, 2.2 million pairs in the first step; sparse-1000000 asked for 31 GB in its first
+/// step and was killed.
+pub const MAX_SPARSE: usize = 100_000;
+
+/// Most bodies family `kind` (`sparse`, `pile`, ...) may have.
+pub fn generated_most(kind: &str) -> usize {
+    match kind {
+        "sparse" => MAX_SPARSE,
+        _ => MAX_GENERATED,
+    }
+}
+
+/// Why `kind-N` (a known family) cannot be generated, if it cannot: N outside 1 to the
+/// family's most ([`generated_most`]), or a chain-N whose N is not a multiple of its links.
+pub fn generated_size_problem(kind: &str, n: usize) -> Option<String> {
+    let most = generated_most(kind);
+    let links = generate::CHAIN_LINKS;
+    if !(1..=most).contains(&n) {
+        let why = match kind {
+            "sparse" => " (it packs them into one 400 x 400 square; scatter-N keeps their spacing)",
+            _ => "",
+        };
+        Some(format!(
+            "{kind}-N: N must be a whole number from 1 to {most}{why}, not {n}"
+        ))
+    } else if kind == "chain" && !n.is_multiple_of(links) {
+        // chain-15 was ten bodies, as chain-1 and chain-19 were, without a word.
+        Some(format!(
+            "chain-N: N must be a multiple of {links} (chains of {links} links), not {n}"
+        ))
+    } else {
+        None
+    }
+}
+
 /// `sparse-N`, `scatter-N`, `pile-N`, `chain-N`, `rope-N` or `stack-N`: a generated scene, an
-/// error naming the problem when the family is known but N is not a count from 1 to
-/// `MAX_GENERATED` or `constraints` names a file or none (given one, a generated scene ran
+/// error naming the problem when the family is known but N is not a count it can have
+/// ([`generated_size_problem`]) or `constraints` names a file or none (given one, a generated scene ran
 /// without it, in silence), and `None` when the name is no family's.
 fn generated(
     name: &str,
@@ -99,19 +136,12 @@ fn generated(
     let (kind, n) = name.rsplit_once('-')?;
     let family = format!("{kind}-N");
     generate::FAMILIES.iter().find(|(f, _)| *f == family)?;
-    let n = match n.parse::<usize>() {
-        Ok(n) if (1..=MAX_GENERATED).contains(&n) => n,
-        _ => {
-            return Some(Err(format!(
-                "{family}: N must be a whole number from 1 to {MAX_GENERATED}, not '{n}'"
-            )));
-        }
+    let Ok(n) = n.parse::<usize>() else {
+        let most = generated_most(kind);
+        let problem = format!("{family}: N must be a whole number from 1 to {most}, not '{n}'");
+        return Some(Err(problem));
     };
-    // chain-15 was ten bodies, as chain-1 and chain-19 were, without a word.
-    if kind == "chain" && !n.is_multiple_of(generate::CHAIN_LINKS) {
-        let links = generate::CHAIN_LINKS;
-        let problem =
-            format!("chain-N: N must be a multiple of {links} (chains of {links} links), not {n}");
+    if let Some(problem) = generated_size_problem(kind, n) {
         return Some(Err(problem));
     }
     // Refused before the scene is built: a million bodies for an error.
