@@ -518,4 +518,15 @@ fn bench_replot_draws_the_committed_runs_plots_with_readable_ticks() {
     assert!(stderr.contains("accuracy.json"), "{stderr}");
     assert_eq!(stdout.matches("wrote ").count(), 4, "{stdout}");
     let _ = std::fs::remove_dir_all(&dir);
+    // A folder that is not there is said to be missing, not to lack the reports.
+    let out = tumble()
+        .args(["bench", "replot"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("no such folder"),
+        "{stderr}"
+    );
 }

@@ -428,6 +428,8 @@ type Replot = fn(&str, &Path) -> anyhow::Result<Vec<PathBuf>>;
 
 pub fn replot(args: &ReplotArgs) -> anyhow::Result<()> {
     use anyhow::Context;
+    let folder = &args.folder;
+    anyhow::ensure!(folder.is_dir(), "{}: no such folder", folder.display());
     let reports: [(&str, Replot); 2] = [
         ("accuracy.json", tumble::bench::accuracy::replot),
         ("scale.json", tumble::bench::scale::replot),
