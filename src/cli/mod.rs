@@ -11,12 +11,12 @@ use std::path::PathBuf;
 use tumble::sim::settings::{BroadPhase, ConstraintSchedule, RotationIntegrator, Solver};
 use tumble::{ConstraintsChoice, Settings};
 
-/// Simulation settings common to `run`, `view`, `record` and the benchmarks. Defaults reproduce
-/// the coursework exactly; every improvement is opt-in.
 /// Largest `--max-iterations`: a billion, where one step of a few constraints that cannot all
 /// hold takes some seconds.
 const MAX_ITERATIONS: usize = 1_000_000_000;
 
+/// Simulation settings common to `run`, `view`, `record` and the benchmarks. Defaults reproduce
+/// the coursework exactly; every improvement is opt-in.
 #[derive(Debug, Clone, Args)]
 pub struct SettingsArgs {
     /// Solver: the coursework's method or tumble's soft step [default: coursework; soft-step
