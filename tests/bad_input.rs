@@ -738,6 +738,15 @@ fn bodies_that_start_inside_another_or_the_ground_are_named() {
         four[5].contains(": 1 more overlap at the start"),
         "{four:?}"
     );
+    // Two boxes on one spot, between which the detection finds no depth (GJK ends on the
+    // origin): named as at the same place; two fixed ones there load without a word.
+    let box_mesh = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/box.mesh");
+    dir.write("b.mesh", &std::fs::read_to_string(box_mesh).unwrap());
+    let boxes = |f: u8| format!("2\nb.mesh 1 {f} 0 5 0 1 0 0 0\nb.mesh 1 {f} 0 5 0 1 0 0 0\n");
+    let same = load(&dir, &boxes(0), None).unwrap().warnings;
+    let said = "s-scene.txt:3: the body starts at the same place as the body on line 2";
+    assert!(same.len() == 1 && same[0].contains(said), "{same:?}");
+    assert!(load(&dir, &boxes(1), None).unwrap().warnings.is_empty());
 }
 
 /// Records on the same two points (either way round) whose ranges share no distance load with a

@@ -157,9 +157,19 @@ fn starting_overlaps(world: &World, path: &Path, records: &[SceneRecord]) -> Vec
     let mut found: Vec<Overlap> = (world.current_contacts().into_iter())
         .filter_map(|(i, j, c)| {
             let smaller = j.map_or(size(i), |j| size(i).min(size(j)));
-            (c.depth > STARTING_OVERLAP * smaller).then(|| Overlap::new(world, (i, j), c.depth))
+            (c.depth > STARTING_OVERLAP * smaller)
+                .then(|| Overlap::new(world, (i, j), Some(c.depth)))
         })
         .collect();
+    for (i, j) in same_places(world) {
+        let pair = |o: &Overlap| {
+            o.other
+                .is_some_and(|b| [i, j] == [o.inside, b] || [j, i] == [o.inside, b])
+        };
+        if !found.iter().any(pair) {
+            found.push(Overlap::new(world, (i, Some(j)), None));
+        }
+    }
     found.sort_by_key(|o| (records[o.inside].line, o.other.map(|b| records[b].line)));
     let mut warnings: Vec<String> = (found.iter().take(OVERLAPS_LISTED))
         .map(|o| o.warning(world, path, records).to_string())
@@ -176,17 +186,38 @@ fn starting_overlaps(world: &World, path: &Path, records: &[SceneRecord]) -> Vec
     warnings
 }
 
-/// A body that starts `depth` inside body `other`, or below the ground (None).
+/// Pairs of bodies, one of them movable, whose centres of mass start at the same point: a
+/// record copied and not moved. The detection finds no depth between two bodies that coincide
+/// (GJK ends on the origin), so they passed unwarned, and the soft step never parts them (no
+/// normal to push along).
+fn same_places(world: &World) -> Vec<(usize, usize)> {
+    let mut first: std::collections::HashMap<[u64; 3], usize> = Default::default();
+    let mut pairs = Vec::new();
+    for (j, body) in world.bodies.iter().enumerate() {
+        let key = body.position.to_array().map(f64::to_bits);
+        match first.get(&key) {
+            Some(&i) if !(world.bodies[i].fixed && body.fixed) => pairs.push((i, j)),
+            Some(_) => {}
+            None => {
+                first.insert(key, j);
+            }
+        }
+    }
+    pairs
+}
+
+/// A body that starts `depth` inside body `other`, or below the ground (None); at the same
+/// place as `other`, its depth unknown (None).
 struct Overlap {
     inside: usize,
     other: Option<usize>,
-    depth: f64,
+    depth: Option<f64>,
 }
 
 impl Overlap {
     /// The overlap of contact `(i, j)`, told from the body that moves: the later of two movable
     /// bodies, the movable one of a movable and a fixed body.
-    fn new(world: &World, (i, j): (usize, Option<usize>), depth: f64) -> Self {
+    fn new(world: &World, (i, j): (usize, Option<usize>), depth: Option<f64>) -> Self {
         let (inside, other) = match j {
             Some(j) if world.bodies[i.max(j)].fixed => (i.min(j), Some(i.max(j))),
             Some(j) => (i.max(j), Some(i.min(j))),
@@ -200,7 +231,13 @@ impl Overlap {
     }
 
     fn warning(&self, world: &World, path: &Path, records: &[SceneRecord]) -> LoadError {
-        let depth = three_figures(self.depth);
+        let Some(depth) = self.depth.map(three_figures) else {
+            let line = self.other.map_or(0, |b| records[b].line);
+            let problem = format!(
+                "the body starts at the same place as the body on line {line}, inside it (a record copied and not moved?)"
+            );
+            return LoadError::new(path, Some(records[self.inside].line), problem);
+        };
         let problem = match self.other {
             Some(b) if world.bodies[b].fixed => format!(
                 "the body starts {depth} deep inside the fixed body on line {}: the solver will push it out",
