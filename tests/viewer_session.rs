@@ -130,6 +130,28 @@ fn a_smaller_budget_while_rewound_keeps_the_current_state() {
     assert!(steps.windows(2).all(|w| w[1] == w[0] + 1), "{steps:?}");
 }
 
+/// A compared world whose steps leave its time where it was (a time step of 1e-300) or that
+/// would need millions of them to keep up returns each frame after at most 10,000 steps: it
+/// stepped for ever in one frame, the window frozen past Ctrl-C.
+#[test]
+fn a_compared_world_that_cannot_keep_up_steps_a_bounded_amount_each_frame() {
+    for dt in [1e-300, 1e-9] {
+        let mut s = session("cube", Settings::default());
+        s.compare(Settings {
+            time_step: dt,
+            ..Settings::default()
+        });
+        s.advance(0.05, |_| {});
+        let (a, b) = (&s.lanes[0].world, &s.lanes[1].world);
+        assert!(a.step_count >= 1, "dt {dt}: the first world stepped");
+        assert!(
+            b.step_count <= 10_000 * a.step_count,
+            "dt {dt}: {}",
+            b.step_count
+        );
+    }
+}
+
 /// Two lanes of a comparison each equal an independent world stepped with their settings, the
 /// second at half the time step (twice the steps).
 #[test]

@@ -66,7 +66,7 @@ const FILE_POLL: Duration = Duration::from_millis(500);
 pub fn run(world: World, options: ViewOptions) -> anyhow::Result<()> {
     let mut app = App::new(world, options);
     if let Some(spec) = &app.options.compare {
-        let settings = (app.options.parse_settings)(spec)
+        let settings = (app.compared_settings(spec))
             .map_err(|e| anyhow::anyhow!("--compare '{spec}': {e}"))?;
         app.session.compare(settings);
         // The panel's field restarts the comparison with what it holds: the spec in use.
@@ -101,6 +101,9 @@ pub fn run(world: World, options: ViewOptions) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+/// Most steps a compared world may take for each of the first world's (`--compare --dt`).
+const MAX_COMPARED_STEPS_PER_STEP: f64 = 1000.0;
 
 struct App {
     options: ViewOptions,
@@ -304,8 +307,25 @@ impl App {
     }
 
     /// Starts comparing with the settings `spec` names; a spec that does not parse is shown.
+    /// The settings of a compared world from `spec`, refused where its time step is so much
+    /// shorter than the first world's that it could not keep up: it steps to the first one's
+    /// time each frame, and more than a thousand of its steps for each of the first's froze the
+    /// viewer (`--dt 1e-9`).
+    fn compared_settings(&self, spec: &str) -> Result<Settings, String> {
+        let settings = (self.options.parse_settings)(spec)?;
+        let (first, dt) = (self.session.world().settings.time_step, settings.time_step);
+        if first > 0.0 && dt * MAX_COMPARED_STEPS_PER_STEP < first {
+            return Err(format!(
+                "a time step of {} s takes more than {MAX_COMPARED_STEPS_PER_STEP} steps for each of this world's {} s",
+                crate::io::echoed(dt),
+                crate::io::echoed(first)
+            ));
+        }
+        Ok(settings)
+    }
+
     fn start_comparing(&mut self, spec: &str) {
-        match (self.options.parse_settings)(spec) {
+        match self.compared_settings(spec) {
             Ok(settings) => {
                 self.panel.compare_error = None;
                 self.grab = None;
@@ -451,7 +471,15 @@ impl App {
             self.view_rect,
         );
         if let Some(path) = screenshot {
-            self.save_screenshot(&path)?;
+            // `--screenshot`'s failure ends the run it was asked of; a P key's is told in the
+            // panel (a read-only folder closed the viewer, and the session with it).
+            let asked_at_start = self.options.screenshot.as_ref() == Some(&path);
+            match self.save_screenshot(&path) {
+                Err(error) if !asked_at_start => {
+                    self.panel.message = Some(format!("{error:#}"));
+                }
+                saved => saved?,
+            }
         }
         self.finish_frame(clock, event_loop, repaint_delay);
         Ok(())

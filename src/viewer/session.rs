@@ -37,6 +37,10 @@ pub struct Lane {
     grab_offset: DVec3,
 }
 
+/// Most steps a compared world takes in one tick to catch up with the first: 10,000 steps of
+/// a small scene are some milliseconds.
+const MAX_CATCH_UP_STEPS: usize = 10_000;
+
 impl Lane {
     fn new(world: World) -> Lane {
         Lane {
@@ -57,14 +61,23 @@ impl Lane {
     }
 
     /// Steps until the world's time is within half a step of `time` (lockstep with the first
-    /// world, whatever this one's time step).
+    /// world, whatever this one's time step), at most [`MAX_CATCH_UP_STEPS`] a call and never
+    /// past a step that leaves the time where it was: a compared world at `--dt 1e-300` stepped
+    /// for ever in one tick, past Ctrl-C. One left behind catches up on later ticks.
     fn catch_up(&mut self, time: f64) {
         let dt = self.world.settings.time_step;
         if !(dt.is_finite() && dt > 0.0) {
             return;
         }
-        while self.world.time < time - 0.5 * dt {
+        for _ in 0..MAX_CATCH_UP_STEPS {
+            let before = self.world.time;
+            if before >= time - 0.5 * dt {
+                break;
+            }
             self.step();
+            if self.world.time <= before {
+                break;
+            }
         }
     }
 
