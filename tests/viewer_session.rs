@@ -533,6 +533,10 @@ fn an_edited_scene_file_reloads_and_an_error_keeps_the_old_scene() {
     );
     assert_eq!(s.world().bodies.len(), 2, "the old scene stays");
 
+    // Deleted, the scene file is an error and stays watched: written back, it reloads.
+    std::fs::remove_file(&path).unwrap();
+    assert!(matches!(s.poll_files(), Some(Err(_))));
+    assert!(s.watched_files().any(|f| f == path), "still watched");
     std::fs::write(&path, boxes_scene(3)).unwrap();
     assert!(matches!(s.poll_files(), Some(Ok(()))));
     assert_eq!(s.world().bodies.len(), 3);

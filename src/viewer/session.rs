@@ -242,8 +242,18 @@ impl Session {
         self.watch.poll()?;
         let result = self.open(self.source.clone());
         if result.is_err() {
-            // The scene may now name other meshes: watch those.
-            self.watch = FileWatch::new(self.source.files());
+            // The scene may now name other meshes: watch those. A scene file gone (deleted, or
+            // a folder now) names none: the old ones stay watched, so that its return is seen
+            // (the watch was left empty, and reloading stopped for good).
+            let mut files = self.source.files();
+            if files.is_empty() {
+                files = self
+                    .watch
+                    .files()
+                    .map(std::path::Path::to_path_buf)
+                    .collect();
+            }
+            self.watch = FileWatch::new(files);
         }
         Some(result)
     }
