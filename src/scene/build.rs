@@ -162,12 +162,9 @@ fn starting_overlaps(world: &World, path: &Path, records: &[SceneRecord]) -> Vec
         })
         .collect();
     for (i, j) in same_places(world) {
-        let pair = |o: &Overlap| {
-            o.other
-                .is_some_and(|b| [i, j] == [o.inside, b] || [j, i] == [o.inside, b])
-        };
-        if !found.iter().any(pair) {
-            found.push(Overlap::new(world, (i, Some(j)), None));
+        let same = Overlap::new(world, (i, Some(j)), None);
+        if !(found.iter()).any(|o| (o.inside, o.other) == (same.inside, same.other)) {
+            found.push(same);
         }
     }
     found.sort_by_key(|o| (records[o.inside].line, o.other.map(|b| records[b].line)));

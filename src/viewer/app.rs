@@ -306,7 +306,6 @@ impl App {
         self.request_redraw();
     }
 
-    /// Starts comparing with the settings `spec` names; a spec that does not parse is shown.
     /// The settings of a compared world from `spec`, refused where its time step is so much
     /// shorter than the first world's that it could not keep up: it steps to the first one's
     /// time each frame, and more than a thousand of its steps for each of the first's froze the
@@ -324,6 +323,8 @@ impl App {
         Ok(settings)
     }
 
+    /// Starts comparing with the settings `spec` names; a spec that does not parse, or is
+    /// refused ([`Self::compared_settings`]), is shown.
     fn start_comparing(&mut self, spec: &str) {
         match self.compared_settings(spec) {
             Ok(settings) => {
