@@ -12,6 +12,7 @@ use crate::sim::stats::{StageTimings, StepStats};
 use crate::{LoadError, Settings, World};
 use glam::DVec3;
 use std::collections::VecDeque;
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 /// One point of the energy / constraint-violation plot.
@@ -202,7 +203,7 @@ impl Session {
     }
 
     /// Swaps in a newly loaded scene, keeping each world's settings and the play state.
-    pub fn replace(&mut self, world: World, source: SceneSource) {
+    fn replace(&mut self, world: World, source: SceneSource, watch: FileWatch) {
         self.start = world.snapshot();
         let settings: Vec<Settings> = self
             .lanes
@@ -217,42 +218,46 @@ impl Session {
                 Lane::new(w)
             })
             .collect();
-        self.watch = FileWatch::new(source.files());
+        self.watch = watch;
         self.source = source;
         self.restart_bookkeeping();
     }
 
     /// Loads `source` with the current settings; on an error the current scene stays.
     pub fn open(&mut self, source: SceneSource) -> Result<(), LoadError> {
+        // Its files are stamped before they are read: one saved while the scene loads is seen
+        // by the next poll (stamped after, that save was taken as read and never loaded).
+        let watch = FileWatch::new(source.files());
+        self.open_watched(source, watch)
+    }
+
+    /// [`Session::open`] with the watch of the files stamped before the load.
+    fn open_watched(&mut self, source: SceneSource, watch: FileWatch) -> Result<(), LoadError> {
         let world = source.load(self.world().settings.clone())?;
         for w in &world.warnings {
             eprintln!("warning: {w}");
         }
-        self.replace(world, source);
+        self.replace(world, source, watch);
         Ok(())
     }
 
     /// When reloading is on and one of the scene's files changed since the last poll: loads the
     /// scene again (None when nothing changed). On an error the current scene keeps running;
-    /// the files stay watched either way.
+    /// the files stay watched either way, stamped before they were read.
     pub fn poll_files(&mut self) -> Option<Result<(), LoadError>> {
         if !self.auto_reload {
             return None;
         }
         self.watch.poll()?;
-        let result = self.open(self.source.clone());
+        // The scene may now name other meshes: watch those. A scene file gone (deleted, or a
+        // folder now) names none: the old ones stay watched, so that its return is seen (the
+        // watch was left empty, and reloading stopped for good).
+        let mut files = self.source.files();
+        if files.is_empty() {
+            files = self.watch.files().map(Path::to_path_buf).collect();
+        }
+        let result = self.open_watched(self.source.clone(), FileWatch::new(files.clone()));
         if result.is_err() {
-            // The scene may now name other meshes: watch those. A scene file gone (deleted, or
-            // a folder now) names none: the old ones stay watched, so that its return is seen
-            // (the watch was left empty, and reloading stopped for good).
-            let mut files = self.source.files();
-            if files.is_empty() {
-                files = self
-                    .watch
-                    .files()
-                    .map(std::path::Path::to_path_buf)
-                    .collect();
-            }
             self.watch = FileWatch::new(files);
         }
         Some(result)
