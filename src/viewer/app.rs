@@ -139,6 +139,7 @@ impl App {
         panel.draw.layout = options.layout;
         panel.draw.shadows = options.shadows;
         panel.draw.fixed_bodies = options.fixed_bodies;
+        let keep_all = options.frames.is_some();
         App {
             options,
             session,
@@ -149,7 +150,7 @@ impl App {
             error: None,
             pointer: Pointer::default(),
             view_rect: ViewRect::INITIAL,
-            stats: FrameStats::default(),
+            stats: FrameStats::new(keep_all),
             screenshot_requested: None,
             screenshot_counter: 0,
             recording: None,
@@ -271,21 +272,28 @@ impl App {
     }
 
     /// After the session's scene was replaced (opened or reloaded): the renderer's meshes, the
-    /// window title, no selection or grab, and a recording's next frame at the new run's time 0
+    /// window title, no selection or grab, and a recording going on from the new run's time 0
     /// (as after a reset: else it skipped the new run's frames up to the old run's time).
     fn scene_replaced(&mut self) {
         self.panel.load_error = None;
         self.panel.draw.selected = None;
         self.grab = None;
-        if let Some(recording) = &mut self.recording {
-            recording.rewind();
-        }
         if let Some(gfx) = &mut self.gfx {
             gfx.renderer
                 .set_world(&gfx.gpu.device, self.session.world());
             gfx.window
                 .set_title(&format!("tumble — {}", self.session.scene()));
         }
+        self.time_jumped();
+    }
+
+    /// After the simulated time jumped (a reset, a new scene or comparison, a seek or a step
+    /// back in the history): a recording goes on from the new time, with a frame of it.
+    fn time_jumped(&mut self) {
+        if let Some(recording) = &mut self.recording {
+            recording.resume_at(self.session.world().time);
+        }
+        self.capture_recording_frames();
     }
 
     /// Reloads the scene when one of its files changed (every [`FILE_POLL`]); keeps the camera.
@@ -331,9 +339,7 @@ impl App {
                 self.panel.compare_error = None;
                 self.grab = None;
                 self.session.compare(settings);
-                if let Some(recording) = &mut self.recording {
-                    recording.rewind();
-                }
+                self.time_jumped();
             }
             Err(e) => self.panel.compare_error = Some(e),
         }
@@ -349,9 +355,7 @@ impl App {
             }
             Action::Reset => {
                 self.session.reset();
-                if let Some(recording) = &mut self.recording {
-                    recording.rewind();
-                }
+                self.time_jumped();
             }
             Action::FrameScene => self.frame_camera(),
             Action::Screenshot => {
@@ -366,13 +370,19 @@ impl App {
             Action::Load(scene) => self.open_scene(SceneSource::named(&scene)),
             Action::StartRecording => self.start_recording(),
             Action::StopRecording => self.stop_recording(),
-            Action::StepBack => self.session.step_back(),
+            Action::StepBack => {
+                self.session.step_back();
+                self.time_jumped();
+            }
             Action::StepForward => {
                 // At the history's end a new step, which a recording films as `Step`'s.
                 self.session.step_forward();
                 self.capture_recording_frames();
             }
-            Action::Seek(index) => self.session.seek(index),
+            Action::Seek(index) => {
+                self.session.seek(index);
+                self.time_jumped();
+            }
             Action::Compare(spec) => self.start_comparing(&spec),
             Action::StopComparing => {
                 self.session.stop_comparing();
@@ -381,14 +391,22 @@ impl App {
         }
     }
 
+    /// Starts recording to the panel's name, or where a file or folder is there already to the
+    /// first free numbered one ([`super::record::unused_name`]), said in the message.
     fn start_recording(&mut self) {
-        let path = PathBuf::from(self.panel.record_path.trim());
+        let asked = PathBuf::from(self.panel.record_path.trim());
+        let path = super::record::unused_name(&asked);
         let world = self.session.world();
         let (rate, inputs) = ((self.panel.record_fps, world.time), &world.inputs);
         match Recording::start(&path, self.view_rect, rate, inputs) {
             Ok(recording) => {
                 self.recording = Some(recording);
-                self.panel.message = Some(format!("recording to {}", path.display()));
+                let kept = if path == asked {
+                    String::new()
+                } else {
+                    format!(" ({} is there already and is kept)", asked.display())
+                };
+                self.panel.message = Some(format!("recording to {}{kept}", path.display()));
                 self.capture_recording_frames();
             }
             Err(message) => self.panel.message = Some(message),

@@ -43,8 +43,10 @@ pub struct FrameStats {
     last_start: Option<Instant>,
     /// (interval since previous frame, time spent on the frame), recent frames.
     recent: VecDeque<(f64, f64)>,
-    /// Same, every frame of the run (for the `--frames` summary).
+    /// Same, every frame of the run, kept only for the `--frames` summary (a window left open
+    /// for a day would keep 80 MB of them).
     all: Vec<(f64, f64)>,
+    keep_all: bool,
     /// Frames finished so far.
     pub frames: u64,
     /// Seconds spent in each [`Phase`], summed over frames.
@@ -52,6 +54,14 @@ pub struct FrameStats {
 }
 
 impl FrameStats {
+    /// Frame statistics that keep every frame for [`FrameStats::print_summary`] if `keep_all`.
+    pub fn new(keep_all: bool) -> FrameStats {
+        FrameStats {
+            keep_all,
+            ..FrameStats::default()
+        }
+    }
+
     /// Starts the clock of a frame, measuring the interval since the previous one.
     pub fn begin_frame(&mut self) -> FrameClock {
         let start = Instant::now();
@@ -76,7 +86,9 @@ impl FrameStats {
                 *total += marks[k + 1].duration_since(marks[k]).as_secs_f64();
             }
             self.recent.push_back((clock.real_dt, work));
-            self.all.push((clock.real_dt, work));
+            if self.keep_all {
+                self.all.push((clock.real_dt, work));
+            }
         }
         while self.recent.len() > RECENT_FRAMES {
             self.recent.pop_front();

@@ -188,6 +188,34 @@ pub fn check_recording_output(path: &Path, inputs: &[PathBuf]) -> anyhow::Result
     }
 }
 
+/// `path`, or where something is there already the first of `name-2.ext`, `name-3.ext`, ...
+/// that is free: the panel's Record button keeps earlier recordings (a second recording to the
+/// panel's name replaced the first without a word).
+pub fn unused_name(path: &Path) -> PathBuf {
+    let taken = |p: &Path| std::fs::symlink_metadata(p).is_ok();
+    let stem = match path.file_stem() {
+        Some(stem) if taken(path) => stem,
+        _ => return path.to_path_buf(),
+    };
+    let extension = path
+        .extension()
+        .map(|e| format!(".{}", e.to_string_lossy()));
+    (2..=MAX_NUMBERED_NAMES)
+        .map(|k| {
+            let name = format!(
+                "{}-{k}{}",
+                stem.to_string_lossy(),
+                extension.as_deref().unwrap_or("")
+            );
+            path.with_file_name(name)
+        })
+        .find(|p| !taken(p))
+        .unwrap_or_else(|| path.to_path_buf())
+}
+
+/// Most numbered names [`unused_name`] tries before giving the name back as it is.
+const MAX_NUMBERED_NAMES: u32 = 10_000;
+
 /// Refuses to record frames into `folder` where one of the frames it would replace is one of
 /// `inputs`, the files the run reads. Only a frame that is the input's own file counts: the
 /// frames are unlinked, which leaves a file that a link named like a frame leads to, or that
@@ -743,6 +771,25 @@ fn compared_worlds(world: World, compare: Option<&Settings>) -> Vec<(World, Step
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn unused_name_numbers_a_taken_file_or_folder() {
+        let dir = std::env::temp_dir().join(format!("tumble-unused-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let video = dir.join("run.mp4");
+        assert_eq!(unused_name(&video), video);
+        std::fs::write(&video, "first").unwrap();
+        assert_eq!(unused_name(&video), dir.join("run-2.mp4"));
+        std::fs::write(dir.join("run-2.mp4"), "second").unwrap();
+        assert_eq!(unused_name(&video), dir.join("run-3.mp4"));
+        let frames = dir.join("frames");
+        std::fs::create_dir_all(&frames).unwrap();
+        let numbered = unused_name(&dir.join("frames/"));
+        assert_eq!(numbered, dir.join("frames-2"));
+        assert!(matches!(OutputKind::of(&numbered), Ok(OutputKind::PngDir)));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     /// A new recording replaces the frames an earlier one wrote, past a million too, and no
     /// other file (checked without a GPU; `tests/record_cli.rs` records into a folder).

@@ -13,9 +13,7 @@ use std::path::{Path, PathBuf};
 
 pub struct Recording {
     writer: FrameWriter,
-    fps: f64,
-    /// Simulated time of the next frame to capture.
-    next: f64,
+    times: FrameTimes,
     /// Frame size (pixels), fixed for the whole recording.
     width: u32,
     height: u32,
@@ -43,8 +41,7 @@ impl Recording {
         match FrameWriter::create(path, width, height, fps) {
             Ok(writer) => Ok(Recording {
                 writer,
-                fps,
-                next: time,
+                times: FrameTimes::new(fps, time),
                 width,
                 height,
                 labels: None,
@@ -58,9 +55,9 @@ impl Recording {
         (self.writer.path.display().to_string(), self.writer.frames)
     }
 
-    /// After a reset of the simulation: the next frame is the one at time 0.
-    pub fn rewind(&mut self) {
-        self.next = 0.0;
+    /// After the simulated time jumped to `time` (see [`FrameTimes::resume_at`]).
+    pub fn resume_at(&mut self, time: f64) {
+        self.times.resume_at(time);
     }
 
     /// Encodes the queued frames and closes the file; returns its path and the frames written.
@@ -78,8 +75,9 @@ impl Recording {
         lanes: &[Lane],
         view: SceneView<'_>,
     ) -> anyhow::Result<()> {
-        let world = &lanes[0].world;
-        if world.time + 1e-9 < self.next {
+        let time = lanes[0].world.time;
+        let due = self.times.due(time);
+        if due == 0 {
             return Ok(());
         }
         let image = render_view(gfx, lanes, view, &mut self.labels)?;
@@ -88,11 +86,73 @@ impl Recording {
             frame.width == self.width && frame.height == self.height,
             "the window shrank during the recording"
         );
-        while world.time + 1e-9 >= self.next {
+        for _ in 0..self.times.taken(due, time) {
             self.writer.push(frame.clone())?;
-            self.next += 1.0 / self.fps;
         }
         Ok(())
+    }
+}
+
+/// When a recording's frames are due, in simulated time: one every `1 / fps`, from the
+/// recording's start or from where the time last jumped.
+#[derive(Debug, Clone, Copy)]
+struct FrameTimes {
+    fps: f64,
+    /// Where the frames are timed from. Frame `k` is due at `origin + k / fps`: counted, not
+    /// summed, so that the frame times neither drift nor stall where a time is so large that
+    /// adding `1 / fps` leaves it unchanged (`--dt 1e15` looped for ever).
+    origin: f64,
+    /// Index of the next frame, from `origin`.
+    next_frame: u64,
+}
+
+/// Most frames of one image a capture writes: 20 s of video at 30 fps. A step longer than that
+/// (`--dt 1e15`) is filmed as this long; the frames go on from its end.
+const MAX_FRAMES_PER_CAPTURE: u64 = 600;
+
+impl FrameTimes {
+    fn new(fps: f64, time: f64) -> FrameTimes {
+        FrameTimes {
+            fps,
+            origin: time,
+            next_frame: 0,
+        }
+    }
+
+    /// After the simulated time jumped to `time` (a reset, a new scene, a seek or a step back in
+    /// the history): the next frame is the one at `time`, and the frames go on from there. The
+    /// video shows what the view showed: a run replayed after a step back is filmed again, and
+    /// the time a seek skips is not filmed as a still (it was, one frame per skipped frame time).
+    fn resume_at(&mut self, time: f64) {
+        self.origin = time;
+        self.next_frame = 0;
+    }
+
+    /// Frames due at simulated time `time`: those from the next one up to `time`. A step longer
+    /// than a frame's time is filmed as that many frames of one image, so that the video keeps
+    /// to simulated speed.
+    fn due(&self, time: f64) -> u64 {
+        let last = ((time + 1e-9 - self.origin) * self.fps).floor();
+        let next = self.next_frame as f64;
+        if last >= next {
+            (last - next + 1.0).min(u64::MAX as f64) as u64
+        } else {
+            // Also a NaN time: nothing due.
+            0
+        }
+    }
+
+    /// Books the `due` frames at `time` as captured; returns how many to write (at most
+    /// [`MAX_FRAMES_PER_CAPTURE`]: the rest of so long a step is not filmed).
+    fn taken(&mut self, due: u64, time: f64) -> u64 {
+        if due > MAX_FRAMES_PER_CAPTURE {
+            self.resume_at(time);
+            self.next_frame = 1;
+            MAX_FRAMES_PER_CAPTURE
+        } else {
+            self.next_frame += due;
+            due
+        }
     }
 }
 
@@ -147,4 +207,58 @@ fn render_view(
             image.crop(x, y, w, h)
         }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Captures at each of `times` in turn; the frames written at each.
+    fn film(times: &mut FrameTimes, at: &[f64]) -> Vec<u64> {
+        at.iter()
+            .map(|&t| {
+                let due = times.due(t);
+                times.taken(due, t)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_frame_every_frame_time_of_simulated_time() {
+        // 30 fps, steps of 0.02 s from t = 0: frames at 0, 1/30, 2/30, ... Over 1.5 s of
+        // steps (the capture after each step) that is 46 frames, t = 0 to 1.5 included.
+        let mut times = FrameTimes::new(30.0, 0.0);
+        let steps: Vec<f64> = (0..=75).map(|k| k as f64 * 0.02).collect();
+        let written = film(&mut times, &steps);
+        assert_eq!(written.iter().sum::<u64>(), 46);
+        assert!(written.iter().all(|&n| n <= 1), "{written:?}");
+        // A step of 0.1 s spans three frame times: three frames of its one image.
+        assert_eq!(film(&mut times, &[1.6]), vec![3]);
+    }
+
+    #[test]
+    fn a_jump_in_time_is_one_frame_and_the_frames_go_on_from_it() {
+        let mut times = FrameTimes::new(10.0, 0.0);
+        assert_eq!(film(&mut times, &[0.0, 0.5]), vec![1, 5]);
+        // A seek forward to t = 3: one frame there, not one per skipped frame time.
+        times.resume_at(3.0);
+        assert_eq!(film(&mut times, &[3.0, 3.05, 3.1]), vec![1, 0, 1]);
+        // A step back to t = 2.9: filmed again from there.
+        times.resume_at(2.9);
+        assert_eq!(film(&mut times, &[2.9, 3.0, 3.1]), vec![1, 1, 1]);
+    }
+
+    #[test]
+    fn a_huge_step_writes_at_most_the_cap_and_never_stalls() {
+        // At t = 1e15 adding 1/30 leaves the time as it was: summed frame times never passed
+        // it and the capture looped for ever.
+        let mut times = FrameTimes::new(30.0, 0.0);
+        assert_eq!(film(&mut times, &[0.0]), vec![1]);
+        let written = film(&mut times, &[1e15, 2e15, 2e15]);
+        assert_eq!(
+            written,
+            vec![MAX_FRAMES_PER_CAPTURE, MAX_FRAMES_PER_CAPTURE, 0]
+        );
+        assert_eq!(film(&mut times, &[f64::NAN]), vec![0]);
+    }
 }
