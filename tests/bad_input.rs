@@ -249,6 +249,31 @@ fn scene_file_errors() {
 /// A quaternion whose length overflows (components finite, their squares not) is a rotation like
 /// any other, the same as its components scaled down, not "zero"; so is one whose squares
 /// underflow, down to the smallest subnormal: only the zero quaternion is refused.
+/// A constraint file given as the scene, or a scene file as the constraints, is said to be one:
+/// the count and the records fail as the other kind's in ways that do not say so.
+#[test]
+fn swapped_scene_and_constraint_files_are_named() {
+    let dir = Dir::new("swapped");
+    dir.write("t.mesh", TET);
+    let constraints = "2\n0 0 1 2 0.9 1.1\n1 0 2 2 0.9 1.1\n";
+    expect(
+        load(&dir, constraints, None),
+        "s-scene.txt",
+        Some(1),
+        "it reads as a constraint file",
+    );
+    let scene = "2\nt.mesh 1 0 0 1 0 1 0 0 0\nt.mesh 1 0 0 3 0 1 0 0 0\n";
+    expect(
+        load(&dir, scene, Some(scene)),
+        "s-constraints.txt",
+        Some(2),
+        "it reads as a scene file",
+    );
+    // A scene that is neither is not said to be the other.
+    let neither = load(&dir, "2\n0 0 1 2 0.9\n", None).unwrap_err();
+    assert!(!neither.message.contains("reads as"), "{neither}");
+}
+
 #[test]
 fn every_quaternion_but_zero_is_a_rotation() {
     let dir = Dir::new("quaternions");

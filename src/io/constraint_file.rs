@@ -22,7 +22,21 @@ const CONSTRAINT_RECORD: RecordLayout = RecordLayout {
     fields: &["m1", "v1", "m2", "v2", "lower", "upper"],
 };
 
+/// The records of constraint file `file` holding `text`. A scene file given as constraints is
+/// said to be one.
 pub fn parse_constraints(file: &Path, text: &str) -> Result<Records<ConstraintRecord>, LoadError> {
+    read_constraints(file, text).map_err(|error| match super::scene_file::read_scene(file, text) {
+        Ok(read) if !read.records.is_empty() => {
+            error.noting("it reads as a scene file: give it as the scene")
+        }
+        _ => error,
+    })
+}
+
+pub(super) fn read_constraints(
+    file: &Path,
+    text: &str,
+) -> Result<Records<ConstraintRecord>, LoadError> {
     let mut tokens = Tokens::new(file, text);
     // A file with nothing in it (or comments only) holds no constraints: what a user who
     // empties the file beside a scene means.

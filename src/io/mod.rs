@@ -128,6 +128,14 @@ impl LoadError {
         }
     }
 
+    /// The same error with `note` after its message.
+    pub fn noting(self, note: &str) -> Self {
+        Self {
+            message: format!("{}; {note}", self.message),
+            ..self
+        }
+    }
+
     /// The same error attributed to another file (a reader works on text, the caller knows the
     /// path).
     pub fn in_file(mut self, file: &Path) -> Self {

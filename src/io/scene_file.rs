@@ -26,7 +26,20 @@ const BODY_RECORD: RecordLayout = RecordLayout {
     ],
 };
 
+/// The records of scene file `file` holding `text`. A constraint file given as a scene is said
+/// to be one (its count and records fail as bodies in ways that do not say so).
 pub fn parse_scene(file: &Path, text: &str) -> Result<Records<SceneRecord>, LoadError> {
+    read_scene(file, text).map_err(|error| {
+        match super::constraint_file::read_constraints(file, text) {
+            Ok(read) if !read.records.is_empty() => error.noting(
+                "it reads as a constraint file (m1 v1 m2 v2 lower upper): give it with --constraints beside its scene",
+            ),
+            _ => error,
+        }
+    })
+}
+
+pub(super) fn read_scene(file: &Path, text: &str) -> Result<Records<SceneRecord>, LoadError> {
     let mut tokens = Tokens::new(file, text);
     let count = tokens.count_records("the number of bodies", &BODY_RECORD, MAX_BODIES)?;
     let mut records = Vec::with_capacity(count);
