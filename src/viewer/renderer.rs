@@ -13,7 +13,7 @@
 
 use super::camera::{CameraMatrices, OrbitCamera, scene_bounds};
 use super::compare::{self, Layout};
-use super::gpu::{Gpu, Image, Offscreen, buffer_init};
+use super::gpu::{Gpu, Image, NoGpu, Offscreen, buffer_init};
 use super::labels::{Label, LabelPainter};
 use super::layer::{Layer, vertex_usage};
 use super::overlay;
@@ -474,10 +474,23 @@ pub struct OffscreenRenderer {
 }
 
 impl OffscreenRenderer {
-    /// Fails with [`NoGpu`](super::gpu::NoGpu) without an adapter, or with the device's error
-    /// when the frame's buffers do not fit its memory.
+    /// Fails with [`NoGpu`](super::gpu::NoGpu) without an adapter or with one that cannot view
+    /// a texture in another format, or with the device's error when the frame's buffers do not
+    /// fit its memory.
     pub fn new(world: &World, width: u32, height: u32) -> anyhow::Result<OffscreenRenderer> {
         let gpu = Gpu::headless()?;
+        // The target is drawn through an sRGB view of its plain bytes. OpenGL ES adapters
+        // (wgpu's fallback where no Vulkan driver is installed) cannot: the failure read "this
+        // GPU cannot make frames of 640x360", as if the size were at fault.
+        if !(gpu.adapter.get_downlevel_capabilities().flags)
+            .contains(wgpu::DownlevelFlags::VIEW_FORMATS)
+        {
+            return Err(NoGpu(format!(
+                "{} cannot draw into a texture through a view of another format, which the frames need",
+                gpu.description()
+            ))
+            .into());
+        }
         let format = wgpu::TextureFormat::Rgba8Unorm;
         let mut renderer = Renderer::new(&gpu, format.add_srgb_suffix());
         renderer.set_world(&gpu.device, world);
