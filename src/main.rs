@@ -9,11 +9,25 @@ use std::process::ExitCode;
 static ALLOCATOR: tumble::bench::alloc::CountingAlloc = tumble::bench::alloc::CountingAlloc;
 
 #[derive(Parser)]
-#[command(name = "tumble", version, about = "Rigid-body simulation of convex tet meshes with distance constraints", long_about = None)]
+#[command(
+    name = "tumble",
+    version,
+    about = "Rigid-body simulation of convex tet meshes with distance constraints",
+    long_about = None,
+    after_help = EXAMPLES
+)]
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
 }
+
+const EXAMPLES: &str = "Examples:
+  tumble                               the viewer on the built-in mixed scene
+  tumble view tower --accurate         the viewer on the tower, under tumble's own solver
+  tumble run two-chain --steps 1000    headless, with a summary (--json for JSON)
+  tumble record tower -o tower.mp4     a video, offscreen
+  tumble scenes                        the built-in scenes and the generated families
+A command's flags: tumble <COMMAND> --help";
 
 #[derive(Subcommand)]
 enum Command {
@@ -65,7 +79,18 @@ enum BenchCommand {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(error) => {
+            let hint = misplaced_argument_hint(&error);
+            let code = error.exit_code();
+            let _ = error.print();
+            if let Some(hint) = hint {
+                eprintln!("\n{hint}");
+            }
+            return ExitCode::from(code as u8);
+        }
+    };
     // Text commands piped into `head` should end quietly like other Unix tools instead of
     // panicking on the closed pipe. Not for view/record: a dying ffmpeg must be an error the
     // recorder handles (finishing its file), not a silent kill.
@@ -91,7 +116,11 @@ fn main() -> ExitCode {
                 let what = tumble::scene::builtin_description(file);
                 println!("{name:16} {what}");
             }
-            println!("\ngenerated (N bodies, at most 1,000,000):");
+            println!(
+                "\ngenerated (N bodies, at most {}; sparse-N at most {}):",
+                tumble::scene::MAX_GENERATED,
+                tumble::scene::MAX_SPARSE
+            );
             for (name, what) in tumble::scene::generate::FAMILIES {
                 println!("{name:16} {what}");
             }
@@ -108,6 +137,23 @@ fn main() -> ExitCode {
             eprintln!("error: {e:#}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// What to type instead, where the command line begins with a scene (`tumble tower`) or with a
+/// settings flag (`tumble --accurate`), which only the commands take: clap's own tip for
+/// `tumble scenes/tower-scene.txt` pointed at `tumble scenes`.
+fn misplaced_argument_hint(error: &clap::Error) -> Option<String> {
+    use clap::error::ErrorKind;
+    let first = std::env::args().nth(1)?;
+    match error.kind() {
+        ErrorKind::InvalidSubcommand if tumble::scene::names_a_scene(&first) => Some(format!(
+            "'{first}' is a scene: `tumble view {first}` shows it, `tumble run {first}` runs it headless"
+        )),
+        ErrorKind::UnknownArgument if first.starts_with('-') => Some(format!(
+            "settings flags follow a command: `tumble view {first} ...` (`tumble view --help` lists them)"
+        )),
+        _ => None,
     }
 }
 

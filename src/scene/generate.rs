@@ -281,7 +281,10 @@ pub const FAMILIES: [(&str, &str); 6] = [
         "scatter-N",
         "N bodies at sparse-1000's spacing, the area growing with N",
     ),
-    ("pile-N", "N bodies dropped into a walled bin"),
+    (
+        "pile-N",
+        "N bodies dropped into a bin of four fixed walls (N + 4 bodies in all)",
+    ),
     ("chain-N", "N/10 chains of ten links (N a multiple of 10)"),
     (
         "rope-N",

@@ -48,6 +48,21 @@ pub fn builtin_description(file: &str) -> &'static str {
         .map_or("", str::trim)
 }
 
+/// Whether `name` is what [`load`] takes for a scene: a file or folder there, a built-in scene's
+/// name or a generated family's `kind-N` (whether or not it loads).
+pub fn names_a_scene(name: &str) -> bool {
+    let generated = |family: &str| {
+        let kind = family.strip_suffix('N').unwrap_or(family);
+        (name.strip_prefix(kind))
+            .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+    };
+    Path::new(name).exists()
+        || BUILTIN_SCENES.iter().any(|(builtin, _)| *builtin == name)
+        || generate::FAMILIES
+            .iter()
+            .any(|(family, _)| generated(family))
+}
+
 /// Loads a scene by path, or by built-in name when no such file exists.
 pub fn load(
     scene: &str,
