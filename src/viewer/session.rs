@@ -256,9 +256,10 @@ impl Session {
         if files.is_empty() {
             files = self.watch.files().map(Path::to_path_buf).collect();
         }
-        let result = self.open_watched(self.source.clone(), FileWatch::new(files.clone()));
+        let watch = FileWatch::new(files);
+        let result = self.open_watched(self.source.clone(), watch.clone());
         if result.is_err() {
-            self.watch = FileWatch::new(files);
+            self.watch = watch;
         }
         Some(result)
     }

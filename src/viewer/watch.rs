@@ -12,7 +12,7 @@ fn stamp(path: &Path) -> Stamp {
     Some((meta.modified().ok()?, meta.len()))
 }
 
-#[derive(Debug, Default)]
+#[derive(Debug, Default, Clone)]
 pub struct FileWatch {
     files: Vec<(PathBuf, Stamp)>,
 }
