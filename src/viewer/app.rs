@@ -264,8 +264,9 @@ impl App {
     fn open_scene(&mut self, source: SceneSource) {
         match self.session.open(source) {
             Ok(()) => {
-                self.scene_replaced();
+                // Framed first: a recording films the new scene's first state at once.
                 self.frame_camera();
+                self.scene_replaced();
             }
             Err(e) => self.panel.load_error = Some(e.to_string()),
         }
@@ -370,19 +371,13 @@ impl App {
             Action::Load(scene) => self.open_scene(SceneSource::named(&scene)),
             Action::StartRecording => self.start_recording(),
             Action::StopRecording => self.stop_recording(),
-            Action::StepBack => {
-                self.session.step_back();
-                self.time_jumped();
-            }
+            Action::StepBack => self.move_in_history(Session::step_back),
             Action::StepForward => {
                 // At the history's end a new step, which a recording films as `Step`'s.
                 self.session.step_forward();
                 self.capture_recording_frames();
             }
-            Action::Seek(index) => {
-                self.session.seek(index);
-                self.time_jumped();
-            }
+            Action::Seek(index) => self.move_in_history(|s| s.seek(index)),
             Action::Compare(spec) => self.start_comparing(&spec),
             Action::StopComparing => {
                 self.session.stop_comparing();
@@ -391,11 +386,29 @@ impl App {
         }
     }
 
+    /// Moves through the rewind history with `go`; a recording films on from the state it lands
+    /// on, and films nothing again where it stays (Left at the history's start, the slider let
+    /// go where it was).
+    fn move_in_history(&mut self, go: impl FnOnce(&mut Session)) {
+        let step = |s: &Session| s.world().step_count;
+        let before = step(&self.session);
+        go(&mut self.session);
+        if step(&self.session) != before {
+            self.time_jumped();
+        }
+    }
+
     /// Starts recording to the panel's name, or where a file or folder is there already to the
     /// first free numbered one ([`super::record::unused_name`]), said in the message.
     fn start_recording(&mut self) {
         let asked = PathBuf::from(self.panel.record_path.trim());
-        let path = super::record::unused_name(&asked);
+        let Some(path) = super::record::unused_name(&asked) else {
+            self.panel.message = Some(format!(
+                "cannot record: {} and its numbered names are all taken",
+                asked.display()
+            ));
+            return;
+        };
         let world = self.session.world();
         let (rate, inputs) = ((self.panel.record_fps, world.time), &world.inputs);
         match Recording::start(&path, self.view_rect, rate, inputs) {

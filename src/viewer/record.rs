@@ -189,31 +189,34 @@ pub fn check_recording_output(path: &Path, inputs: &[PathBuf]) -> anyhow::Result
 }
 
 /// `path`, or where something is there already the first of `name-2.ext`, `name-3.ext`, ...
-/// that is free: the panel's Record button keeps earlier recordings (a second recording to the
-/// panel's name replaced the first without a word).
-pub fn unused_name(path: &Path) -> PathBuf {
+/// that is free (`name-2` for a folder of frames, whatever dots its name has): the panel's
+/// Record button keeps earlier recordings (a second recording to the panel's name replaced the
+/// first without a word). None when every name up to [`MAX_NUMBERED_NAMES`] is taken.
+pub fn unused_name(path: &Path) -> Option<PathBuf> {
     let taken = |p: &Path| std::fs::symlink_metadata(p).is_ok();
-    let stem = match path.file_stem() {
-        Some(stem) if taken(path) => stem,
-        _ => return path.to_path_buf(),
+    if !taken(path) {
+        return Some(path.to_path_buf());
+    }
+    let name = path.file_name()?.to_string_lossy();
+    let folder = matches!(OutputKind::of(path), Ok(OutputKind::PngDir));
+    let (stem, extension) = match name.rfind('.') {
+        Some(dot) if dot > 0 && !folder => name.split_at(dot),
+        _ => (name.as_ref(), ""),
     };
-    let extension = path
-        .extension()
-        .map(|e| format!(".{}", e.to_string_lossy()));
-    (2..=MAX_NUMBERED_NAMES)
-        .map(|k| {
-            let name = format!(
-                "{}-{k}{}",
-                stem.to_string_lossy(),
-                extension.as_deref().unwrap_or("")
-            );
-            path.with_file_name(name)
-        })
-        .find(|p| !taken(p))
-        .unwrap_or_else(|| path.to_path_buf())
+    let numbered = |k: u32| {
+        let mut numbered = path.with_file_name(format!("{stem}-{k}{extension}"));
+        if folder {
+            // Still a folder to `OutputKind::of` (`shots.v1-2` would be a .v1-2 file).
+            numbered
+                .as_mut_os_string()
+                .push(std::path::MAIN_SEPARATOR_STR);
+        }
+        numbered
+    };
+    (2..=MAX_NUMBERED_NAMES).map(numbered).find(|p| !taken(p))
 }
 
-/// Most numbered names [`unused_name`] tries before giving the name back as it is.
+/// Most numbered names [`unused_name`] tries.
 const MAX_NUMBERED_NAMES: u32 = 10_000;
 
 /// Refuses to record frames into `folder` where one of the frames it would replace is one of
@@ -778,16 +781,17 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
         let video = dir.join("run.mp4");
-        assert_eq!(unused_name(&video), video);
+        assert_eq!(unused_name(&video), Some(video.clone()));
         std::fs::write(&video, "first").unwrap();
-        assert_eq!(unused_name(&video), dir.join("run-2.mp4"));
+        assert_eq!(unused_name(&video), Some(dir.join("run-2.mp4")));
         std::fs::write(dir.join("run-2.mp4"), "second").unwrap();
-        assert_eq!(unused_name(&video), dir.join("run-3.mp4"));
-        let frames = dir.join("frames");
-        std::fs::create_dir_all(&frames).unwrap();
-        let numbered = unused_name(&dir.join("frames/"));
-        assert_eq!(numbered, dir.join("frames-2"));
-        assert!(matches!(OutputKind::of(&numbered), Ok(OutputKind::PngDir)));
+        assert_eq!(unused_name(&video), Some(dir.join("run-3.mp4")));
+        for folder in ["frames", "shots.v1"] {
+            std::fs::create_dir_all(dir.join(folder)).unwrap();
+            let numbered = unused_name(&dir.join(format!("{folder}/"))).unwrap();
+            assert_eq!(numbered, dir.join(format!("{folder}-2")));
+            assert!(matches!(OutputKind::of(&numbered), Ok(OutputKind::PngDir)));
+        }
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -106,9 +106,10 @@ struct FrameTimes {
     next_frame: u64,
 }
 
-/// Most frames of one image a capture writes: 20 s of video at 30 fps. A step longer than that
-/// (`--dt 1e15`) is filmed as this long; the frames go on from its end.
-const MAX_FRAMES_PER_CAPTURE: u64 = 600;
+/// Most frames of one image a capture writes: 2 s of video at 30 fps. A step longer than that
+/// (`--dt 1e15`; the panel's slider ends at 0.05 s) is filmed as this long, and the frames go
+/// on from its end: 600 frames a step kept the window waiting on their encoding step after step.
+const MAX_FRAMES_PER_CAPTURE: u64 = 60;
 
 impl FrameTimes {
     fn new(fps: f64, time: f64) -> FrameTimes {
