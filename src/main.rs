@@ -140,17 +140,19 @@ fn main() -> ExitCode {
     }
 }
 
-/// What to type instead, where the command line begins with a scene (`tumble tower`) or with a
-/// settings flag (`tumble --accurate`), which only the commands take: clap's own tip for
-/// `tumble scenes/tower-scene.txt` pointed at `tumble scenes`.
+/// What to type instead, where the command line begins with a scene (`tumble tower`) or with
+/// settings flags that `tumble view` takes (`tumble --accurate`), which only the commands take:
+/// clap's own tip for `tumble scenes/tower-scene.txt` pointed at `tumble scenes`.
 fn misplaced_argument_hint(error: &clap::Error) -> Option<String> {
     use clap::error::ErrorKind;
-    let first = std::env::args().nth(1)?;
+    // Not `args`: an argument that is not UTF-8 must reach clap's message, not a panic here.
+    let args: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    let first = args.get(1)?.to_str()?;
     match error.kind() {
-        ErrorKind::InvalidSubcommand if tumble::scene::names_a_scene(&first) => Some(format!(
+        ErrorKind::InvalidSubcommand if tumble::scene::names_a_scene(first) => Some(format!(
             "'{first}' is a scene: `tumble view {first}` shows it, `tumble run {first}` runs it headless"
         )),
-        ErrorKind::UnknownArgument if first.starts_with('-') => Some(format!(
+        ErrorKind::UnknownArgument if DefaultView::try_parse_from(&args).is_ok() => Some(format!(
             "settings flags follow a command: `tumble view {first} ...` (`tumble view --help` lists them)"
         )),
         _ => None,

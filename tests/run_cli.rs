@@ -413,6 +413,44 @@ fn bench_scale_quick_keeps_what_is_named() {
 /// rigidly together, fall sideways as one, by semi-implicit Euler's `g dt^2 n (n + 1) / 2`
 /// after n steps, and not at all along y. The trajectory written to standard output is the
 /// file's.
+/// A scene or settings flags given without a command are told which command takes them;
+/// another mistake gets clap's message alone (an argument that is not UTF-8 too, where the
+/// hint's reading of the arguments must not panic); every one exits with status 2.
+#[test]
+fn a_scene_or_flags_without_a_command_name_the_command() {
+    let stderr = |command: &mut Command| {
+        let out = command.output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{command:?}");
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    assert!(stderr(tumble().arg("tower")).contains("`tumble view tower` shows it"));
+    let pile = stderr(tumble().arg("pile-300"));
+    assert!(
+        pile.contains("`tumble run pile-300` runs it headless"),
+        "{pile}"
+    );
+    let flags = stderr(tumble().args(["--accurate", "--dt", "0.01"]));
+    assert!(flags.contains("`tumble view --accurate ...`"), "{flags}");
+    #[cfg(unix)]
+    let not_utf8 = {
+        use std::os::unix::ffi::OsStrExt;
+        std::ffi::OsStr::from_bytes(b"caf\xe9-scene.txt").to_owned()
+    };
+    #[cfg(not(unix))]
+    let not_utf8 = std::ffi::OsString::from("caf-scene.txt");
+    for other in [
+        tumble().arg("--verison"),
+        tumble().arg("towr"),
+        tumble().arg(not_utf8),
+    ] {
+        let text = stderr(other);
+        assert!(
+            !text.contains("follow a command") && !text.contains("is a scene"),
+            "{text}"
+        );
+    }
+}
+
 #[test]
 fn gravity_is_a_flag() {
     let dir = scratch("gravity");
