@@ -144,6 +144,17 @@ fn check_combinations(names: &[String]) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `items` in order without repeats.
+fn first_of_each<T: PartialEq>(items: Vec<T>) -> Vec<T> {
+    let mut kept: Vec<T> = Vec::with_capacity(items.len());
+    for item in items {
+        if !kept.contains(&item) {
+            kept.push(item);
+        }
+    }
+    kept
+}
+
 fn jobs(config: &AccuracyConfig) -> (Vec<Job>, Vec<f64>) {
     let scenarios = if config.scenarios.is_empty() {
         Scenario::ALL.to_vec()
@@ -156,6 +167,9 @@ fn jobs(config: &AccuracyConfig) -> (Vec<Job>, Vec<f64>) {
         (true, false) => DTS.to_vec(),
         (true, true) => QUICK_DTS.to_vec(),
     };
+    // Named twice, a scenario or dt runs once (`bounce_e1,bounce_e0.5` both name the bounce:
+    // it ran twice, the second results replacing the first).
+    let (scenarios, dts) = (first_of_each(scenarios), first_of_each(dts));
     let mut combos = engines();
     if !config.combinations.is_empty() {
         combos.retain(|(name, ..)| config.combinations.iter().any(|c| c == name));
@@ -440,4 +454,31 @@ pub fn pareto_front(points: &[(f64, f64)]) -> Vec<(f64, f64)> {
         }
     }
     front
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A scenario or dt named twice is one job each: the bounce's three result names, and a dt
+    /// repeated, give the jobs of the bounce at that dt once.
+    #[test]
+    fn a_scenario_or_dt_named_twice_runs_once() {
+        let config = |scenarios: Vec<Scenario>, dts: Vec<f64>| AccuracyConfig {
+            scenarios,
+            dts,
+            combinations: vec!["coursework".into(), "accurate".into()],
+            quick: false,
+            out: PathBuf::new(),
+        };
+        let once = jobs(&config(vec![Scenario::Bounce], vec![0.04])).0;
+        let twice = jobs(&config(vec![Scenario::Bounce; 3], vec![0.04, 0.04])).0;
+        let names = |jobs: &[Job]| -> Vec<(String, &str, u64)> {
+            (jobs.iter())
+                .map(|j| (j.name.clone(), j.combination, j.dt.to_bits()))
+                .collect()
+        };
+        assert_eq!(once.len(), 3 * 2);
+        assert_eq!(names(&twice), names(&once));
+    }
 }
