@@ -246,9 +246,6 @@ fn scene_file_errors() {
     assert!(load(&dir, "1\nt.mesh 0 1 0 0 0 1 0 0 0\n", None).is_ok());
 }
 
-/// A quaternion whose length overflows (components finite, their squares not) is a rotation like
-/// any other, the same as its components scaled down, not "zero"; so is one whose squares
-/// underflow, down to the smallest subnormal: only the zero quaternion is refused.
 /// A constraint file given as the scene, or a scene file as the constraints, is said to be one:
 /// the count and the records fail as the other kind's in ways that do not say so.
 #[test]
@@ -274,6 +271,9 @@ fn swapped_scene_and_constraint_files_are_named() {
     assert!(!neither.message.contains("reads as"), "{neither}");
 }
 
+/// A quaternion whose length overflows (components finite, their squares not) is a rotation like
+/// any other, the same as its components scaled down, not "zero"; so is one whose squares
+/// underflow, down to the smallest subnormal: only the zero quaternion is refused.
 #[test]
 fn every_quaternion_but_zero_is_a_rotation() {
     let dir = Dir::new("quaternions");

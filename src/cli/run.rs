@@ -390,8 +390,6 @@ fn print_summary(out: &mut impl Write, s: &RunSummary) -> std::io::Result<()> {
     print_state_at_end(out, s)
 }
 
-/// The worst constraint violation in scene units, and the worst share of a rest length (not
-/// necessarily the same constraint's).
 /// A rate of steps for the summary: whole from 100 a second up, else to three figures (a run of
 /// 2 steps in 14.7 s read "0 steps/s").
 fn steps_per_second(rate: f64) -> String {
@@ -402,6 +400,8 @@ fn steps_per_second(rate: f64) -> String {
     }
 }
 
+/// The worst constraint violation in scene units, and the worst share of a rest length (not
+/// necessarily the same constraint's).
 fn worst_violation(s: &RunSummary) -> String {
     format!(
         "{}, worst share of a rest length {}",
