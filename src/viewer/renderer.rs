@@ -474,7 +474,7 @@ pub struct OffscreenRenderer {
 }
 
 impl OffscreenRenderer {
-    /// Fails with [`NoGpu`](super::gpu::NoGpu) without an adapter or with one that cannot view
+    /// Fails with [`NoGpu`] without an adapter or with one that cannot view
     /// a texture in another format, or with the device's error when the frame's buffers do not
     /// fit its memory.
     pub fn new(world: &World, width: u32, height: u32) -> anyhow::Result<OffscreenRenderer> {
