@@ -529,6 +529,29 @@ fn record_warns_of_the_compared_worlds_budget() {
     );
 }
 
+/// Bodies that blow up while recording are told of, as `run` tells of them (the recording said
+/// nothing; they were drawn dark red): under 1e300 units/s² of gravity every body of the mixed
+/// scene does, in the first world only.
+#[test]
+fn record_tells_of_bodies_that_blew_up() {
+    let dir = scratch("blew-up");
+    let Some(output) = run_rendering(
+        tumble()
+            .args(["record", "mixed", "--gravity", "0,-1e300,0"])
+            .args(["--compare", "--gravity 0,-9.8,0"])
+            .args(["--seconds", "0.1", "--size", "64x64", "-o"])
+            .arg(dir.join("b.gif")),
+    ) else {
+        return;
+    };
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("warning: 7 bodies of world A blew up"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("of world B"), "{stderr}");
+}
+
 /// `view --screenshot` is checked as the other outputs are, before any window opens: not over
 /// the scene it shows (it replaced it with a PNG), and a PNG by name.
 #[test]

@@ -279,22 +279,23 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
 
 /// Warnings on frames a recording will show otherwise than a user may expect.
 #[cfg(feature = "viewer")]
-fn warn_of_frames(kind: tumble::viewer::OutputKind, fps: f64, dts: &[f64]) {
+fn warn_of_frames(kind: tumble::viewer::OutputKind, fps: f64, (dt, compared): (f64, Option<f64>)) {
     // The coarsest world's step: the first world's, or the compared one's.
-    let names = ["--dt", "--compare's --dt"];
-    let (name, coarsest) = names
-        .into_iter()
-        .zip(dts.iter().copied())
-        .fold(("--dt", 0.0), |a, b| if b.1 > a.1 { b } else { a });
+    let (name, coarsest) = match compared {
+        Some(compared) if compared > dt => ("--compare's --dt", compared),
+        _ => ("--dt", dt),
+    };
     let repeated = tumble::viewer::record::repeated_frame_share(fps, coarsest);
     // From half a percent, which the message's whole percent can show.
     if repeated >= 0.005 {
         // Rounded down, so that the step suggested is short enough.
         let enough = (1e4 / fps).floor() / 1e4;
         eprintln!(
-            "warning: --fps {fps} is more frames than steps a simulated second ({name} \
-             {coarsest}): {:.0} % of the frames repeat the one before; a --dt of at most \
-             {enough:.4} gives each frame a step of its own",
+            "warning: --fps {} is more frames than steps a simulated second ({name} {}): \
+             {:.0} % of the frames repeat the one before; a --dt of at most {enough:.4} gives \
+             each frame a step of its own",
+            tumble::io::echoed(fps),
+            tumble::io::echoed(coarsest),
             100.0 * repeated,
         );
     }
@@ -318,18 +319,15 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
     };
     // Refused before the settings' warnings: `--dt 0` warned that nothing would move, then was
     // refused.
-    let dts: Vec<f64> = std::iter::once(&settings)
-        .chain(&compare)
-        .map(|s| s.time_step)
-        .collect();
-    tumble::viewer::record::check_rates(args.seconds, args.fps, dts.iter().copied())?;
+    let dts = (settings.time_step, compare.as_ref().map(|s| s.time_step));
+    tumble::viewer::record::check_rates(args.seconds, args.fps, dts)?;
     for note in notes {
         eprintln!("warning: {note}");
     }
     for note in compare_notes {
         eprintln!("warning: --compare: {note}");
     }
-    warn_of_frames(kind, args.fps, &dts);
+    warn_of_frames(kind, args.fps, dts);
     let (width, height) = args.size.unwrap_or(if kind == OutputKind::Gif {
         (640, 360)
     } else {
@@ -391,6 +389,19 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
         1e3 * report.encode_s / frames,
         report.adapter,
     );
+    // `run` names each body as it blows up; a recording said nothing (its bodies turn dark red).
+    for (k, &frozen) in report.frozen.iter().enumerate().filter(|(_, n)| **n > 0) {
+        let world = match report.frozen.len() {
+            1 => String::new(),
+            _ => format!(" of world {}", tumble::viewer::compare::lane_name(k)),
+        };
+        eprintln!(
+            "warning: {}{world} blew up (a non-finite value or an absurd speed) and {} frozen \
+             at the last good pose, drawn dark red; `tumble run` with the same flags names them",
+            counted(frozen as u64, "body", "bodies"),
+            if frozen == 1 { "was" } else { "were" },
+        );
+    }
     if report.interrupted {
         eprintln!(
             "interrupted: {} holds the {} rendered before it",

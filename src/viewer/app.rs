@@ -315,13 +315,20 @@ impl App {
         self.request_redraw();
     }
 
-    /// The settings of a compared world from `spec`, refused where its time step is so much
-    /// shorter than the first world's that it could not keep up: it steps to the first one's
-    /// time each frame, and more than a thousand of its steps for each of the first's froze the
-    /// viewer (`--dt 1e-9`).
+    /// The settings of a compared world from `spec`, refused where its time step is not
+    /// positive, or so much shorter than the first world's that it could not keep up: it steps
+    /// to the first one's time each frame, and more than a thousand of its steps for each of
+    /// the first's froze the viewer (`--dt 1e-9`).
     fn compared_settings(&self, spec: &str) -> Result<Settings, String> {
         let settings = (self.options.parse_settings)(spec)?;
         let (first, dt) = (self.session.world().settings.time_step, settings.time_step);
+        if dt <= 0.0 {
+            // (Not "takes more than 1000 steps": a world that stands still takes none.)
+            return Err(format!(
+                "a compared world's time step must be positive, got {}",
+                crate::io::echoed(dt)
+            ));
+        }
         if first > 0.0 && dt * MAX_COMPARED_STEPS_PER_STEP < first {
             return Err(format!(
                 "a time step of {} s takes more than {MAX_COMPARED_STEPS_PER_STEP} steps for each of this world's {} s",

@@ -175,7 +175,7 @@ impl OrbitCamera {
             return Err(format!(
                 "--camera '{spec}': the pitch must lie in -90..=90 degrees (from below to straight \
                  down), got {}; the steepest view is {:.1}",
-                values[1],
+                crate::io::echoed(values[1]),
                 MAX_PITCH.to_degrees()
             ));
         }

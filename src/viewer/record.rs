@@ -398,10 +398,21 @@ impl FrameWriter {
             );
         }
         match kind {
-            OutputKind::Gif => anyhow::ensure!(
-                width <= u16::MAX as u32 && height <= u16::MAX as u32,
-                "GIF frames are at most 65535 pixels wide and tall"
-            ),
+            OutputKind::Gif => {
+                anyhow::ensure!(
+                    width <= u16::MAX as u32 && height <= u16::MAX as u32,
+                    "GIF frames are at most 65535 pixels wide and tall"
+                );
+                // A GIF's frame lasts at most 65535 centiseconds: slower rates were cut to that
+                // in silence, while the closing line gave the length asked for.
+                anyhow::ensure!(
+                    fps >= MIN_GIF_FPS,
+                    "--fps {}: a GIF shows a frame for at most 655.35 s, so it takes at least \
+                     {} frames a second",
+                    crate::io::echoed(fps),
+                    crate::io::significant(MIN_GIF_FPS, 3)
+                );
+            }
             OutputKind::Mp4 => {
                 // ffmpeg reads the rate as a decimal: 1e-300 came out as three hundred digits it
                 // would not parse.
@@ -420,7 +431,12 @@ impl FrameWriter {
                     "MP4 (H.264, yuv420p) needs an even width and height, got {width}x{height}"
                 );
             }
-            OutputKind::PngDir => {}
+            OutputKind::PngDir => anyhow::ensure!(
+                !path.exists() || path.is_dir(),
+                "cannot record frames into {}: it is a file (a path without an extension is a \
+                 folder of PNG frames; end it in .mp4 or .gif for a video)",
+                path.display()
+            ),
         }
         Ok(kind)
     }
@@ -545,6 +561,9 @@ pub struct RecordOptions {
 /// Fewest frames a second an MP4 is recorded at.
 const MIN_MP4_FPS: f64 = 0.01;
 
+/// Lowest frame rate of a GIF: a frame lasts at most 65535 centiseconds.
+const MIN_GIF_FPS: f64 = 100.0 / 65535.0;
+
 /// Most steps a recording takes (of each world).
 const MAX_RECORD_STEPS: f64 = 1e8;
 
@@ -552,20 +571,23 @@ const MAX_RECORD_STEPS: f64 = 1e8;
 /// for 6e7 frames (a folder of PNGs to fill a disk), with no word before it began.
 const MAX_RECORD_FRAMES: f64 = 1e7;
 
-/// Rejects a length, frame rate and time steps (one a world) that cannot make a recording.
+/// Rejects a length, frame rate and time steps (the world's, and the compared world's where
+/// there is one) that cannot make a recording.
 pub fn check_rates(
     seconds: f64,
     fps: f64,
-    dts: impl IntoIterator<Item = f64>,
+    (dt, compared): (f64, Option<f64>),
 ) -> anyhow::Result<()> {
     anyhow::ensure!(
         seconds.is_finite() && seconds >= 0.0,
         "--seconds must be a non-negative number, got {seconds}"
     );
-    for dt in dts {
+    let named = std::iter::once(("", dt)).chain(compared.map(|dt| ("--compare: ", dt)));
+    for (world, dt) in named {
         anyhow::ensure!(
             dt.is_finite() && dt > 0.0,
-            "the time step must be positive to record, got {dt}"
+            "{world}the time step must be positive to record, got {}",
+            crate::io::echoed(dt)
         );
         // --dt 5e-324 stepped for ever (time plus the step is the time again), past Ctrl-C,
         // which is asked between frames.
@@ -575,7 +597,7 @@ pub fn check_rates(
         let short = |x: f64| crate::io::significant(x, 6);
         anyhow::ensure!(
             steps <= MAX_RECORD_STEPS,
-            "recording {} s takes {steps:.1e} steps of {} s, more than \
+            "{world}recording {} s takes {steps:.1e} steps of {} s, more than \
              {MAX_RECORD_STEPS:.0e}: record fewer --seconds or take a longer --dt",
             short(seconds),
             short(dt)
@@ -583,7 +605,8 @@ pub fn check_rates(
     }
     anyhow::ensure!(
         fps.is_finite() && fps > 0.0 && fps <= 1000.0,
-        "--fps must lie in (0, 1000], got {fps}"
+        "--fps must lie in (0, 1000], got {}",
+        crate::io::echoed(fps)
     );
     let frames = seconds * fps;
     anyhow::ensure!(
@@ -606,7 +629,7 @@ impl RecordOptions {
     /// Rejects settings that cannot make a recording, with simulation time step `dt`.
     fn check(&self, dt: f64) -> anyhow::Result<()> {
         let compared = self.compare.as_ref().map(|s| s.time_step);
-        check_rates(self.seconds, self.fps, std::iter::once(dt).chain(compared))
+        check_rates(self.seconds, self.fps, (dt, compared))
     }
 
     /// The camera over `world`: framed for one pane, then as `camera` says.
@@ -648,6 +671,8 @@ pub struct RecordReport {
     /// Stopped early by Ctrl-C; the frames so far were written.
     pub interrupted: bool,
     pub adapter: String,
+    /// Bodies of each world (the first, then the compared one) that blew up and were frozen.
+    pub frozen: Vec<usize>,
 }
 
 /// The worlds being recorded, each with its last step's statistics.
@@ -719,6 +744,7 @@ pub fn record(
         encode_s: 0.0,
         interrupted: false,
         adapter: offscreen.gpu.description(),
+        frozen: Vec::new(),
     };
     let start_time = world.time;
     let yaw = camera.yaw;
@@ -755,6 +781,9 @@ pub fn record(
     }
     report.encode_wait_s += t.elapsed().as_secs_f64();
     report.sim_time = recorded.worlds[0].0.time - start_time;
+    report.frozen = (recorded.worlds.iter())
+        .map(|(w, _)| w.bodies.iter().filter(|b| b.quarantined).count())
+        .collect();
     report.wall_s = start.elapsed().as_secs_f64();
     Ok(report)
 }
@@ -830,6 +859,34 @@ mod tests {
             OutputKind::PngDir
         );
         assert!(OutputKind::of(Path::new("a.avi")).is_err());
+    }
+
+    /// What a recording cannot be is refused before it starts, saying why: a GIF slower than
+    /// its longest frame (65535 cs; cut to it in silence before), a folder of frames where a
+    /// file is, a compared world's time step named as the compared one's.
+    #[test]
+    fn what_cannot_be_recorded_is_refused_saying_why() {
+        let dir = std::env::temp_dir().join(format!("tumble-refused-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let gif = dir.join("slow.gif");
+        let slow = FrameWriter::check(&gif, 32, 32, 0.0015).unwrap_err();
+        assert!(slow.to_string().contains("at most 655.35 s"), "{slow}");
+        assert!(FrameWriter::check(&gif, 32, 32, 0.0016).is_ok());
+        let file = dir.join("plainfile");
+        std::fs::write(&file, "not a folder").unwrap();
+        let into_file = FrameWriter::check(&file, 32, 32, 30.0).unwrap_err();
+        assert!(
+            into_file.to_string().contains("it is a file"),
+            "{into_file}"
+        );
+        let compared = check_rates(1.0, 30.0, (0.02, Some(0.0))).unwrap_err();
+        assert!(
+            compared.to_string().starts_with("--compare: "),
+            "{compared}"
+        );
+        assert!(check_rates(1.0, 30.0, (0.02, Some(0.01))).is_ok());
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     /// A folder recording replaces an earlier one's frames when its first frame comes, not
