@@ -277,6 +277,25 @@ pub fn view(args: &ViewArgs) -> anyhow::Result<()> {
     tumble::viewer::run_viewer(world, options)
 }
 
+/// Tells of the bodies of each world (`frozen`, the first world's then the compared one's)
+/// that blew up while recording: `run` names each as it blows up, a recording said nothing (its
+/// frozen bodies are drawn dark red).
+#[cfg(feature = "viewer")]
+fn warn_of_frozen_bodies(frozen: &[usize]) {
+    for (k, &bodies) in frozen.iter().enumerate().filter(|(_, n)| **n > 0) {
+        let world = match frozen.len() {
+            1 => String::new(),
+            _ => format!(" of world {}", tumble::viewer::compare::lane_name(k)),
+        };
+        eprintln!(
+            "warning: {}{world} blew up (a non-finite value or an absurd speed) and {} frozen \
+             at the last good pose, drawn dark red; `tumble run` with the same flags names them",
+            tumble::io::counted(bodies as u64, "body", "bodies"),
+            if bodies == 1 { "was" } else { "were" },
+        );
+    }
+}
+
 /// Warnings on frames a recording will show otherwise than a user may expect.
 #[cfg(feature = "viewer")]
 fn warn_of_frames(kind: tumble::viewer::OutputKind, fps: f64, (dt, compared): (f64, Option<f64>)) {
@@ -389,19 +408,7 @@ pub fn record(args: &RecordArgs) -> anyhow::Result<()> {
         1e3 * report.encode_s / frames,
         report.adapter,
     );
-    // `run` names each body as it blows up; a recording said nothing (its bodies turn dark red).
-    for (k, &frozen) in report.frozen.iter().enumerate().filter(|(_, n)| **n > 0) {
-        let world = match report.frozen.len() {
-            1 => String::new(),
-            _ => format!(" of world {}", tumble::viewer::compare::lane_name(k)),
-        };
-        eprintln!(
-            "warning: {}{world} blew up (a non-finite value or an absurd speed) and {} frozen \
-             at the last good pose, drawn dark red; `tumble run` with the same flags names them",
-            counted(frozen as u64, "body", "bodies"),
-            if frozen == 1 { "was" } else { "were" },
-        );
-    }
+    warn_of_frozen_bodies(&report.frozen);
     if report.interrupted {
         eprintln!(
             "interrupted: {} holds the {} rendered before it",
