@@ -409,6 +409,67 @@ fn bench_scale_quick_keeps_what_is_named() {
     assert_eq!(v["steps"], 3);
 }
 
+/// A bench's folder holds one run: a second run into it removes the plots of the families the
+/// first ran and it does not (they stayed beside a report without them); a variant or size
+/// named twice runs once (its runs were counted twice); a run with nothing to measure, a report
+/// name taken by a folder and `--out` naming a file are refused before anything runs.
+#[test]
+fn bench_folders_hold_one_run() {
+    let dir = scratch("bench-folder");
+    let scale = |scenes: &str, variants: &str| {
+        let mut command = tumble();
+        command
+            .args(["bench", "scale", "--quick", "--scenes", scenes])
+            .args(["--sizes", "10,10", "--variants", variants, "--steps", "3"])
+            .args(["--json", "--out"])
+            .arg(&dir);
+        command
+    };
+    succeeded(&mut scale("sparse,chain", "tumble_1_thread"));
+    assert!(dir.join("scale-chain.svg").is_file());
+    let again = succeeded(&mut scale("sparse", "tumble_1_thread,tumble_1_thread"));
+    assert!(!dir.join("scale-chain.svg").exists());
+    assert!(dir.join("scale-sparse.svg").is_file());
+    let v: serde_json::Value = serde_json::from_slice(&again.stdout).unwrap();
+    let run = &v["results"]["sparse-10"]["tumble_1_thread"];
+    assert!(run["runs"].as_u64().unwrap() <= 5, "{run}");
+    let refused = |command: &mut Command, words: &str| {
+        let out = command.output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && stderr.contains(words), "{stderr}");
+    };
+    let mut nothing = tumble();
+    nothing
+        .args(["bench", "scale", "--quick", "--scenes", "scatter"])
+        .args([
+            "--scatter-sizes",
+            "20000",
+            "--variants",
+            "coursework",
+            "--out",
+        ])
+        .arg(&dir);
+    refused(&mut nothing, "nothing to measure");
+    std::fs::remove_file(dir.join("scale.json")).unwrap();
+    std::fs::create_dir_all(dir.join("scale.json")).unwrap();
+    refused(
+        &mut scale("sparse", "tumble_1_thread"),
+        "scale.json there is a folder",
+    );
+    let file = dir.join("a-file");
+    std::fs::write(&file, "").unwrap();
+    let mut into_file = tumble();
+    into_file
+        .args(["bench", "scale", "--quick", "--out"])
+        .arg(&file);
+    refused(&mut into_file, "a file is there");
+    refused(
+        tumble().args(["bench", "soak", "--steps", "0"]),
+        "at least 1",
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// `--gravity` pulls every body the way it says: the cube scene's eight octahedra, held
 /// rigidly together, fall sideways as one, by semi-implicit Euler's `g dt^2 n (n + 1) / 2`
 /// after n steps, and not at all along y. The trajectory written to standard output is the

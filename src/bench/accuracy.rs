@@ -144,17 +144,6 @@ fn check_combinations(names: &[String]) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `items` in order without repeats.
-fn first_of_each<T: PartialEq>(items: Vec<T>) -> Vec<T> {
-    let mut kept: Vec<T> = Vec::with_capacity(items.len());
-    for item in items {
-        if !kept.contains(&item) {
-            kept.push(item);
-        }
-    }
-    kept
-}
-
 fn jobs(config: &AccuracyConfig) -> (Vec<Job>, Vec<f64>) {
     let scenarios = if config.scenarios.is_empty() {
         Scenario::ALL.to_vec()
@@ -169,7 +158,7 @@ fn jobs(config: &AccuracyConfig) -> (Vec<Job>, Vec<f64>) {
     };
     // Named twice, a scenario or dt runs once (`bounce_e1,bounce_e0.5` both name the bounce:
     // it ran twice, the second results replacing the first).
-    let (scenarios, dts) = (first_of_each(scenarios), first_of_each(dts));
+    let (scenarios, dts) = (super::first_of_each(scenarios), super::first_of_each(dts));
     let mut combos = engines();
     if !config.combinations.is_empty() {
         combos.retain(|(name, ..)| config.combinations.iter().any(|c| c == name));
@@ -289,6 +278,9 @@ fn record(
 /// Shortest and longest time step `--dts` takes (s).
 const DT_RANGE: (f64, f64) = (1e-5, 1.0);
 
+/// The reports a run writes into its folder (the JSON and the table beside the CSV).
+const ACCURACY_REPORTS: [&str; 3] = ["accuracy.csv", "accuracy.json", "accuracy.txt"];
+
 /// Runs the sweep, writes `accuracy.csv` and one plot per scenario into `config.out`.
 pub fn run(config: &AccuracyConfig, progress: &dyn Progress) -> anyhow::Result<AccuracyReport> {
     if let Some(dt) = config.dts.iter().find(|dt| !(dt.is_finite() && **dt > 0.0)) {
@@ -312,7 +304,7 @@ pub fn run(config: &AccuracyConfig, progress: &dyn Progress) -> anyhow::Result<A
         );
     }
     check_combinations(&config.combinations)?;
-    super::output_folder(&config.out)?;
+    super::output_folder(&config.out, &ACCURACY_REPORTS)?;
     let (jobs, dts) = jobs(config);
     progress.start(jobs.len() as u64, "bench accuracy");
     let mut results = AccuracyResults::new();
@@ -340,7 +332,7 @@ pub fn run(config: &AccuracyConfig, progress: &dyn Progress) -> anyhow::Result<A
         progress.set_position(done as u64);
     }
     progress.finish();
-    super::output_folder(&config.out)?;
+    super::output_folder(&config.out, &ACCURACY_REPORTS)?;
     let csv_path = config.out.join("accuracy.csv");
     super::write_named(&csv_path, csv)?;
     let plots = write_plots(&results, &config.out)?;
@@ -426,6 +418,7 @@ fn write_plots(results: &AccuracyResults, out: &Path) -> anyhow::Result<Vec<Path
         )?;
         plots.push(path);
     }
+    super::remove_stale_plots(out, "accuracy-", &plots)?;
     Ok(plots)
 }
 

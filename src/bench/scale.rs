@@ -457,7 +457,8 @@ fn measure_rapier(_: &str, _: usize, _: Variant, _: &ScaleConfig) -> anyhow::Res
 /// (scene family, N, variant) of every run, and "scene-N variant: why" for those left out.
 fn jobs(config: &ScaleConfig) -> (Vec<(String, usize, Variant)>, Vec<String>) {
     let (mut jobs, mut left_out) = (Vec::new(), Vec::new());
-    for scene in &config.scenes {
+    let variants = super::first_of_each(config.variants.clone());
+    for scene in &super::first_of_each(config.scenes.clone()) {
         let mut sizes = match scene.as_str() {
             "scatter" => config.scatter_sizes.clone(),
             _ => config.sizes.clone(),
@@ -465,8 +466,8 @@ fn jobs(config: &ScaleConfig) -> (Vec<(String, usize, Variant)>, Vec<String>) {
         if config.huge && scene == "sparse" {
             sizes.push(100_000);
         }
-        for &n in &sizes {
-            for &v in &config.variants {
+        for &n in &super::first_of_each(sizes) {
+            for &v in &variants {
                 match v.left_out(scene, n) {
                     Some(why) => left_out.push(format!("{scene}-{n} {}: {why}", v.name())),
                     None => jobs.push((scene.clone(), n, v)),
@@ -477,10 +478,19 @@ fn jobs(config: &ScaleConfig) -> (Vec<(String, usize, Variant)>, Vec<String>) {
     (jobs, left_out)
 }
 
+/// The reports a run writes into its folder (the JSON and the table beside the CSV).
+const SCALE_REPORTS: [&str; 3] = ["scale.csv", "scale.json", "scale.txt"];
+
 /// Measures every job, then writes `scale.csv` and one plot per scene family.
 pub fn run(config: &ScaleConfig, progress: &dyn Progress) -> anyhow::Result<ScaleReport> {
-    super::output_folder(&config.out)?;
+    super::output_folder(&config.out, &SCALE_REPORTS)?;
     let (jobs, left_out) = jobs(config);
+    // (An empty table, an empty plot and a zero exit, which `bench replot` then refused.)
+    anyhow::ensure!(
+        !jobs.is_empty(),
+        "nothing to measure: {}",
+        left_out.join("; ")
+    );
     progress.start(jobs.len() as u64, "bench scale");
     let mut results: BTreeMap<String, BTreeMap<String, Measurement>> = BTreeMap::new();
     for (k, (scene, n, v)) in jobs.iter().enumerate() {
@@ -494,14 +504,15 @@ pub fn run(config: &ScaleConfig, progress: &dyn Progress) -> anyhow::Result<Scal
     }
     repeat_short_runs(&jobs, &mut results, config, progress)?;
     progress.finish();
-    super::output_folder(&config.out)?;
+    super::output_folder(&config.out, &SCALE_REPORTS)?;
     let csv = config.out.join("scale.csv");
     super::write_named(&csv, csv_text(&results))?;
     let medians = results.iter().map(|(key, by)| {
         let by_variant = by.iter().map(|(v, m)| (v.clone(), m.median_ms_per_step));
         (key.clone(), by_variant.collect())
     });
-    let plots = write_plots(&medians.collect(), &config.scenes, &config.out)?;
+    let scenes = super::first_of_each(config.scenes.clone());
+    let plots = write_plots(&medians.collect(), &scenes, &config.out)?;
     Ok(ScaleReport {
         machine: super::machine::Machine::detect(),
         cores: rayon::current_num_threads(),
@@ -761,6 +772,7 @@ fn write_plots(
         )?;
         plots.push(path);
     }
+    super::remove_stale_plots(out, "scale-", &plots)?;
     Ok(plots)
 }
 

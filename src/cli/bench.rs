@@ -433,7 +433,12 @@ type Replot = fn(&str, &Path) -> anyhow::Result<Vec<PathBuf>>;
 pub fn replot(args: &ReplotArgs) -> anyhow::Result<()> {
     use anyhow::Context;
     let folder = &args.folder;
-    anyhow::ensure!(folder.is_dir(), "{}: no such folder", folder.display());
+    let what = if folder.exists() {
+        "a file, not a folder"
+    } else {
+        "no such folder"
+    };
+    anyhow::ensure!(folder.is_dir(), "{}: {what}", folder.display());
     let reports: [(&str, Replot); 2] = [
         ("accuracy.json", tumble::bench::accuracy::replot),
         ("scale.json", tumble::bench::scale::replot),
@@ -467,6 +472,8 @@ pub fn replot(args: &ReplotArgs) -> anyhow::Result<()> {
 }
 
 pub fn soak(args: &SoakArgs) -> anyhow::Result<()> {
+    // Zero steps read as bodies that never moved (speed 0), as `bench scale` refuses them.
+    anyhow::ensure!(args.steps >= 1, "--steps must be at least 1");
     let settings = if args.accurate {
         Settings::accurate()
     } else {
