@@ -33,10 +33,10 @@ pub struct ScaleArgs {
     pub scenes: Vec<String>,
     /// Body counts of sparse (at most 100000), pile and chain [default: 100 1000 10000; 100
     /// 1000 with --quick].
-    #[arg(long, num_args = 1.., value_delimiter = ',')]
+    #[arg(long, num_args = 1.., value_delimiter = ',', allow_negative_numbers = true, value_parser = super::whole_number::<usize>)]
     pub sizes: Vec<usize>,
     /// Body counts of scatter [default: 1000 10000 100000; 1000 with --quick].
-    #[arg(long, num_args = 1.., value_delimiter = ',')]
+    #[arg(long, num_args = 1.., value_delimiter = ',', allow_negative_numbers = true, value_parser = super::whole_number::<usize>)]
     pub scatter_sizes: Vec<usize>,
     /// Variants to run (default: all): coursework, tumble_1_thread, tumble_all_cores,
     /// accurate_1_thread, accurate_all_cores, rapier, rapier_accurate (the last two need
@@ -52,7 +52,7 @@ pub struct ScaleArgs {
     #[arg(long, allow_negative_numbers = true, value_parser = super::whole_number::<usize>)]
     pub steps: Option<usize>,
     /// Warm-up steps per run [default: 20; 3 with --quick].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::whole_number::<usize>)]
     pub warmup: Option<usize>,
     /// Wall-clock cap per run in seconds (pile-N: three times it): slow variants measure fewer
     /// steps [default: 30; 5 with --quick].
