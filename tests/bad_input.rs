@@ -1452,7 +1452,7 @@ fn bench_options_out_of_range_are_named() {
     all.push(file.as_os_str());
     cli_fails_saying(
         &all,
-        &format!("--out {}: cannot make the folder", file.display()),
+        &format!("--out {}: a file is there", file.display()),
     );
     std::fs::remove_file(&file).unwrap();
     // The help lists every combination the bench knows.
