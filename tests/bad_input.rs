@@ -1450,10 +1450,7 @@ fn bench_options_out_of_range_are_named() {
     let args = "bench accuracy --scenarios free-fall --dts 0.04 --out".split(' ');
     let mut all: Vec<&std::ffi::OsStr> = args.map(std::ffi::OsStr::new).collect();
     all.push(file.as_os_str());
-    cli_fails_saying(
-        &all,
-        &format!("--out {}: a file is there", file.display()),
-    );
+    cli_fails_saying(&all, &format!("--out {}: a file is there", file.display()));
     std::fs::remove_file(&file).unwrap();
     // The help lists every combination the bench knows.
     let help = std::process::Command::new(env!("CARGO_BIN_EXE_tumble"))

@@ -57,6 +57,7 @@ pub fn output_folder(folder: &std::path::Path, reports: &[&str]) -> anyhow::Resu
 
 /// `items` in order without repeats: a scenario, size, variant or dt named twice is run once
 /// (named twice, it was measured twice, the second replacing the first).
+#[cfg(feature = "bench")]
 pub(crate) fn first_of_each<T: PartialEq>(items: Vec<T>) -> Vec<T> {
     let mut kept: Vec<T> = Vec::with_capacity(items.len());
     for item in items {
