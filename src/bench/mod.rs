@@ -30,8 +30,9 @@ pub trait Progress: Sync {
 }
 
 /// Makes the folder a benchmark writes into and checks that a file can be written there, and
-/// that none of its `reports` (file names) is a folder, before the benchmark runs: `--out` naming a file, or a folder that cannot be written, failed after
-/// the whole run with "File exists (os error 17)" and threw its results away.
+/// that none of its `reports` (file names) is a folder, before the benchmark runs: `--out`
+/// naming a file, or a folder that cannot be written, failed after the whole run with "File
+/// exists (os error 17)" and threw its results away.
 #[cfg(feature = "bench")]
 pub fn output_folder(folder: &std::path::Path, reports: &[&str]) -> anyhow::Result<()> {
     use anyhow::Context;
