@@ -714,11 +714,20 @@ pub fn replot(json: &str, out: &Path) -> anyhow::Result<Vec<PathBuf>> {
     let mut medians: BTreeMap<String, BTreeMap<String, f64>> = BTreeMap::new();
     for (scene, by_variant) in object(&value["results"]) {
         for (variant, m) in object(&by_variant) {
-            if let Some(median) = m["median_ms_per_step"].as_f64() {
-                medians
-                    .entry(scene.clone())
-                    .or_default()
-                    .insert(variant, median);
+            // Named as the accuracy replot names what it cannot read: such entries were left
+            // out without a word, and with none left "no scale results" named none of them.
+            anyhow::ensure!(
+                Variant::from_name(&variant).is_some(),
+                "{scene}: '{variant}' is not a variant of the bench"
+            );
+            let median = &m["median_ms_per_step"];
+            match median.as_f64() {
+                Some(median) => {
+                    (medians.entry(scene.clone()).or_default()).insert(variant, median);
+                }
+                // Written as null: not finite, nothing to draw.
+                None if median.is_null() && m.get("median_ms_per_step").is_some() => {}
+                None => anyhow::bail!("{scene}/{variant}: no median_ms_per_step"),
             }
         }
     }
@@ -787,6 +796,38 @@ fn rapier_note() -> &'static str {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An entry the replot cannot read is named, as the accuracy replot names its own: an
+    /// unknown variant, or a median that is not a number; a median written as null (not
+    /// finite) is left out of the plot.
+    #[test]
+    fn replot_names_the_entries_it_cannot_read() {
+        let out = std::env::temp_dir().join(format!("tumble-scale-replot-{}", std::process::id()));
+        std::fs::create_dir_all(&out).unwrap();
+        let report = |entry: &str| format!(r#"{{"results": {{"pile-100": {entry}}}}}"#);
+        let unknown = replot(
+            &report(r#"{"nonsense": {"median_ms_per_step": 1.0}}"#),
+            &out,
+        );
+        assert!(
+            unknown
+                .unwrap_err()
+                .to_string()
+                .contains("'nonsense' is not a variant")
+        );
+        let text = replot(
+            &report(r#"{"coursework": {"median_ms_per_step": "fast"}}"#),
+            &out,
+        );
+        let text = text.unwrap_err().to_string();
+        assert!(
+            text.contains("pile-100/coursework: no median_ms_per_step"),
+            "{text}"
+        );
+        let fine = r#"{"coursework": {"median_ms_per_step": 1.5}, "rapier": {"median_ms_per_step": null}}"#;
+        assert_eq!(replot(&report(fine), &out).unwrap().len(), 1);
+        std::fs::remove_dir_all(&out).unwrap();
+    }
 
     fn run_of(step_seconds: Vec<f64>) -> Measurement {
         let n = step_seconds.len();
