@@ -200,11 +200,11 @@ impl Gfx {
 
     /// Follows a change of the window's size (not to zero).
     pub fn resize(&mut self, size: winit::dpi::PhysicalSize<u32>) {
-        self.config.width = size.width;
-        self.config.height = size.height;
+        let (width, height) = surface_size(&self.gpu, size);
+        self.config.width = width;
+        self.config.height = height;
         self.surface.configure(&self.gpu.device, &self.config);
-        self.renderer
-            .resize(&self.gpu.device, size.width, size.height);
+        self.renderer.resize(&self.gpu.device, width, height);
         self.window.request_redraw();
     }
 
@@ -241,6 +241,14 @@ impl Gfx {
     }
 }
 
+/// The surface's size for a window of `size`: at least a pixel, and at most the device's
+/// largest texture side (a window stretched past it, over several screens, ended in wgpu's
+/// validation error; the view is then drawn at that size and scaled to the window).
+fn surface_size(gpu: &Gpu, size: winit::dpi::PhysicalSize<u32>) -> (u32, u32) {
+    let most = gpu.device.limits().max_texture_dimension_2d.max(1);
+    (size.width.clamp(1, most), size.height.clamp(1, most))
+}
+
 /// Configures `surface` for a window of `size`.
 ///
 /// The window's own format is the gamma-space one egui wants (blending in sRGB space, and much
@@ -262,8 +270,9 @@ fn configure_surface(
         .or_else(|| caps.formats.first().copied())
         .context("the window surface supports no format")?;
     let scene_format = format.add_srgb_suffix();
+    let (width, height) = surface_size(gpu, size);
     let mut config = surface
-        .get_default_config(&gpu.adapter, size.width.max(1), size.height.max(1))
+        .get_default_config(&gpu.adapter, width, height)
         .context("the window surface is not supported by the adapter")?;
     config.format = format;
     config.view_formats = if scene_format != format {
