@@ -49,18 +49,20 @@ pub fn builtin_description(file: &str) -> &'static str {
 }
 
 /// Whether `name` is what [`load`] takes for a scene: a file or folder there, a built-in scene's
-/// name or a generated family's `kind-N` (whether or not it loads).
+/// name or a generated family's `kind-N` ([`generated_parts`]; whether or not it loads).
 pub fn names_a_scene(name: &str) -> bool {
-    let generated = |family: &str| {
-        let kind = family.strip_suffix('N').unwrap_or(family);
-        (name.strip_prefix(kind))
-            .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
-    };
     Path::new(name).exists()
         || BUILTIN_SCENES.iter().any(|(builtin, _)| *builtin == name)
-        || generate::FAMILIES
-            .iter()
-            .any(|(family, _)| generated(family))
+        || generated_parts(name).is_some()
+}
+
+/// `name` as a generated family's `kind-N`: the kind and the N as written, where the family is
+/// one of [`generate::FAMILIES`] (the N may not be a number).
+fn generated_parts(name: &str) -> Option<(&str, &str)> {
+    let (kind, n) = name.rsplit_once('-')?;
+    (generate::FAMILIES.iter())
+        .any(|(family, _)| family.strip_suffix("-N") == Some(kind))
+        .then_some((kind, n))
 }
 
 /// Loads a scene by path, or by built-in name when no such file exists.
@@ -148,9 +150,8 @@ fn generated(
     constraints: &ConstraintsChoice,
     settings: &Settings,
 ) -> Option<Result<World, String>> {
-    let (kind, n) = name.rsplit_once('-')?;
+    let (kind, n) = generated_parts(name)?;
     let family = format!("{kind}-N");
-    generate::FAMILIES.iter().find(|(f, _)| *f == family)?;
     let Ok(n) = n.parse::<usize>() else {
         let most = generated_most(kind);
         let problem = format!("{family}: N must be a whole number from 1 to {most}, not '{n}'");

@@ -804,11 +804,17 @@ fn compared_worlds(world: World, compare: Option<&Settings>) -> Vec<(World, Step
 mod tests {
     use super::*;
 
-    #[test]
-    fn unused_name_numbers_a_taken_file_or_folder() {
-        let dir = std::env::temp_dir().join(format!("tumble-unused-{}", std::process::id()));
+    /// An empty folder of the temporary directory for one test (`name`).
+    fn fresh_dir(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("tumble-{name}-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    #[test]
+    fn unused_name_numbers_a_taken_file_or_folder() {
+        let dir = fresh_dir("unused");
         let video = dir.join("run.mp4");
         assert_eq!(unused_name(&video), Some(video.clone()));
         std::fs::write(&video, "first").unwrap();
@@ -866,9 +872,7 @@ mod tests {
     /// file is, a compared world's time step named as the compared one's.
     #[test]
     fn what_cannot_be_recorded_is_refused_saying_why() {
-        let dir = std::env::temp_dir().join(format!("tumble-refused-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = fresh_dir("refused");
         let gif = dir.join("slow.gif");
         let slow = FrameWriter::check(&gif, 32, 32, 0.0015).unwrap_err();
         assert!(slow.to_string().contains("at most 655.35 s"), "{slow}");
@@ -893,9 +897,7 @@ mod tests {
     /// before: one that ends without a frame leaves them (it removed them as it began).
     #[test]
     fn a_folder_recording_without_a_frame_keeps_the_earlier_frames() {
-        let dir = std::env::temp_dir().join(format!("tumble-folder-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = fresh_dir("folder");
         let earlier: Vec<String> = (0..3).map(frame_name).collect();
         for name in earlier.iter().chain(["notes.txt".to_string()].iter()) {
             std::fs::write(dir.join(name), b"earlier").unwrap();
@@ -940,9 +942,7 @@ mod tests {
     /// place as if complete.
     #[test]
     fn an_abandoned_recording_leaves_no_file() {
-        let dir = std::env::temp_dir().join(format!("tumble-frames-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
+        let dir = fresh_dir("frames");
         let frame = || Image {
             width: 4,
             height: 2,
